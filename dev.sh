@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# One entry point for users and CI. Creates .venv (numpy, scipy, numba, ROS 2 Jazzy wheels, ...)
+# on first use, then:
+#   ./dev.sh demo          emergency stop of the default scenario (paper scenario 6)
+#   ./dev.sh test [ARGS]   the whole test suite (ARGS go to pytest)
+#   ./dev.sh bench         the speed benchmark
+#   ./dev.sh run CMD ...   any command inside the environment (e.g. ./dev.sh run ltd-brake validate)
+set -euo pipefail
+cd "$(dirname "$0")"
+VENV=${LTD_VENV:-.venv}
+PY=${PYTHON:-python3}
+
+pip_install() {
+  # quiet, and without this machine's notes about absent local package mirrors
+  "$VENV/bin/python" -m pip install --quiet "$@" 2> >(grep -v 'is ignored: it is neither' >&2)
+}
+
+setup() {
+  if [ ! -x "$VENV/bin/python" ]; then
+    echo "creating virtual environment $VENV" >&2
+    "$PY" -m venv "$VENV"
+  fi
+  local stamp
+  stamp="$VENV/.installed-$(cat requirements.txt setup.py | sha1sum | cut -c1-12)"
+  if [ ! -f "$stamp" ]; then
+    echo "installing dependencies into $VENV (first run only)" >&2
+    pip_install --upgrade pip
+    pip_install -r requirements.txt
+    pip_install --no-deps -e .
+    rm -f "$VENV"/.installed-*
+    touch "$stamp"
+  fi
+  export PATH="$PWD/$VENV/bin:$PATH"
+}
+
+cmd=${1:-demo}
+shift || true
+case "$cmd" in
+  demo)  setup; exec ltd-brake simulate --scenario 6 "$@" ;;
+  test)  setup; exec python -m pytest "$@" ;;
+  bench) setup; exec python benchmarks/bench_integrator.py "$@" ;;
+  run)   setup; exec "$@" ;;
+  setup) setup ;;
+  *) echo "usage: ./dev.sh demo|test|bench|run CMD...|setup" >&2; exit 2 ;;
+esac

@@ -1,0 +1,191 @@
+"""Whole runs: an emergency stop from speed, and the paper's validation table."""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .inputs import (BrakeParams, Consist, CouplerLUT, Scenario, load_brake_params,
+                     load_coupler_lut, load_scenarios)
+from .simulator import Commands, SimulationError, Simulator
+
+
+@dataclass(frozen=True)
+class StopResult:
+    """Summary of one emergency stop (units in the names).
+
+    Coupler numbers count from 1 behind the head; buff forces are reported as negative values.
+    """
+
+    consist: str
+    vehicles: int
+    train_length_m: float
+    train_mass_t: float
+    braked_weight_percent: float
+    initial_speed_kmh: float
+    stopping_distance_m: float
+    stop_time_s: float
+    peak_draft_kN: float
+    peak_draft_coupler: int
+    peak_draft_time_s: float
+    peak_buff_kN: float
+    peak_buff_coupler: int
+    peak_buff_time_s: float
+    couplers_beyond_lut: int
+    max_beyond_lut_mm: float
+    wall_time_s: float
+    real_time_factor: float
+    steps: int
+    newton_iterations: int
+    newton_iterations_per_step: float
+    max_newton_iterations: int
+
+    def as_dict(self) -> dict:
+        """Plain dict for JSON output."""
+        return asdict(self)
+
+
+def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | None = None,
+                   lut: CouplerLUT | None = None, *, step_s: float = 0.01,
+                   chunk_s: float = 1.0, max_time_s: float = 600.0,
+                   on_chunk=None) -> StopResult:
+    """Apply the emergency brake at t = 0 and integrate until the train stands still.
+
+    Parameters
+    ----------
+    consist : Consist
+    speed_kmh : float
+        Initial speed [km/h].
+    params : BrakeParams, optional
+    lut : CouplerLUT, optional
+    step_s : float, optional
+        Integration step [s].
+    chunk_s : float, optional
+        Simulated time per :meth:`Simulator.advance` call [s].
+    max_time_s : float, optional
+        Give up (raise) if the train has not stopped by then [s].
+    on_chunk : callable, optional
+        Called with each :class:`~ltd_brake_ros.simulator.Snapshot`.
+
+    Returns
+    -------
+    StopResult
+
+    Raises
+    ------
+    SimulationError
+        A step failed, or the train did not stop within ``max_time_s``.
+    """
+    params = params or load_brake_params()
+    lut = lut or load_coupler_lut()
+    sim = Simulator(consist, speed_kmh, params, lut, step_s=step_s)
+    start = time.perf_counter()
+    snap = sim.advance(chunk_s, Commands(emergency=True))
+    if on_chunk:
+        on_chunk(snap)
+    while sim.stop_time_s is None:
+        if sim.time_s >= max_time_s:
+            raise SimulationError(f"the train had not stopped after {max_time_s:g} s")
+        snap = sim.advance(chunk_s)
+        if on_chunk:
+            on_chunk(snap)
+    wall = time.perf_counter() - start
+    return summarize(sim, wall)
+
+
+def summarize(sim: Simulator, wall_s: float) -> StopResult:
+    """Build a :class:`StopResult` from a simulator that has stopped.
+
+    Parameters
+    ----------
+    sim : Simulator
+    wall_s : float
+        Wall time the run took [s].
+
+    Returns
+    -------
+    StopResult
+    """
+    draft, buff = sim.peak_draft_N, sim.peak_buff_N
+    jd = int(np.argmax(draft)) if draft.size else 0
+    jb = int(np.argmin(buff)) if buff.size else 0
+    exc = sim.lut_excursion_m
+    stop_t = sim.stop_time_s - (sim.command_time_s or 0.0)
+    return StopResult(
+        consist=sim.consist.name, vehicles=sim.n, train_length_m=sim.consist.length_m,
+        train_mass_t=sim.consist.mass_kg / 1e3,
+        braked_weight_percent=sim.braked_weight_percent(),
+        initial_speed_kmh=sim.speed_kmh, stopping_distance_m=float(sim.stopping_distance_m),
+        stop_time_s=float(stop_t),
+        peak_draft_kN=float(draft[jd]) / 1e3 if draft.size else 0.0,
+        peak_draft_coupler=jd + 1, peak_draft_time_s=float(sim.peak_draft_time_s[jd]) if draft.size else 0.0,
+        peak_buff_kN=float(buff[jb]) / 1e3 if buff.size else 0.0,
+        peak_buff_coupler=jb + 1, peak_buff_time_s=float(sim.peak_buff_time_s[jb]) if buff.size else 0.0,
+        couplers_beyond_lut=int(np.count_nonzero(exc)), max_beyond_lut_mm=float(exc.max(initial=0.0)) * 1e3,
+        wall_time_s=wall_s, real_time_factor=sim.time_s / wall_s if wall_s > 0 else float("inf"),
+        steps=sim.steps, newton_iterations=sim.newton_iterations,
+        newton_iterations_per_step=sim.newton_iterations / max(sim.steps, 1),
+        max_newton_iterations=sim.max_newton_iterations)
+
+
+@dataclass(frozen=True)
+class ValidationRow:
+    """One row of Tables 1-2 beside our result."""
+
+    scenario: Scenario
+    result: StopResult
+
+    @property
+    def distance_error_percent(self) -> float:
+        """Our stopping distance against the LTDPoliTo column [%]."""
+        ref = self.scenario.paper["ltdpolito_m"]
+        return 100.0 * (self.result.stopping_distance_m - ref) / ref
+
+    @property
+    def uic_error_percent(self) -> float | None:
+        """Our stopping distance against the UIC 544-1 column [%] (None at 50 km/h)."""
+        ref = self.scenario.paper.get("uic_m")
+        return None if ref is None else 100.0 * (self.result.stopping_distance_m - ref) / ref
+
+
+def validate(params: BrakeParams | None = None, lut: CouplerLUT | None = None,
+             scenarios: list[int] | None = None, *, step_s: float = 0.01,
+             workers: int = 1) -> list[ValidationRow]:
+    """Run the paper's scenarios and pair each with its published values.
+
+    Parameters
+    ----------
+    params : BrakeParams, optional
+    lut : CouplerLUT, optional
+    scenarios : list of int, optional
+        Scenario numbers (default: all 12).
+    step_s : float, optional
+        Integration step [s].
+    workers : int, optional
+        Processes to run scenarios in parallel (1 = in this process).
+
+    Returns
+    -------
+    list of ValidationRow
+    """
+    params = params or load_brake_params()
+    lut = lut or load_coupler_lut()
+    catalogue = load_scenarios()
+    chosen = [catalogue[k] for k in (scenarios or sorted(catalogue))]
+    jobs = [(s.consist_file, s.speed_kmh, params, lut, step_s) for s in chosen]
+    if workers > 1 and len(jobs) > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            results = list(pool.map(_run_job, jobs))
+    else:
+        results = [_run_job(j) for j in jobs]
+    return [ValidationRow(s, r) for s, r in zip(chosen, results)]
+
+
+def _run_job(job) -> StopResult:
+    from .inputs import load_consist
+
+    consist_file, speed, params, lut, step_s = job
+    return emergency_stop(load_consist(consist_file), speed, params, lut, step_s=step_s)

@@ -1,0 +1,420 @@
+"""The simulator: owns time and state, advances the train in chunks.
+
+Contract
+--------
+1. Build it from validated inputs (:class:`~ltd_brake_ros.inputs.Consist`,
+   :class:`~ltd_brake_ros.inputs.BrakeParams`, :class:`~ltd_brake_ros.inputs.CouplerLUT`) and an
+   initial speed; every vehicle starts at that speed with unloaded couplers.
+2. :meth:`Simulator.advance` integrates one chunk of simulated time under the given
+   :class:`Commands` and returns a :class:`Snapshot`. Chunks of any length give the same result
+   as one long call, within the integrator tolerance (exactly the same when both are multiples
+   of the step).
+3. A step whose Newton iteration does not converge raises :class:`SimulationError`; the state is
+   left at the start of the failed chunk's last good step and :meth:`reset` recovers.
+4. Counters (``steps``, ``newton_iterations``, ...) report what the integration cost.
+
+Sign conventions: vehicle 0 is the head; speeds forward positive; coupler j (numbered from 1
+behind the head) carries force draft/tension positive, buff negative; brake forces are
+retarding forces, positive.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import kernel
+from .inputs import BlockBrake, BrakeParams, Consist, CouplerLUT, DiscBrake, InputError
+from .physics import (ARR_BG, ARR_BGU, BRAKE_BLOCKS, BRAKE_DISC, BRAKE_NONE, KMH_PER_MS,
+                      sum_block_force_kN, train_braked_weight_percent)
+
+
+class SimulationError(RuntimeError):
+    """The integration could not proceed (a Newton iteration did not converge)."""
+
+
+@dataclass(frozen=True)
+class Commands:
+    """Driver and train-control inputs held constant over one chunk.
+
+    Attributes
+    ----------
+    emergency : bool
+        Emergency brake applied. A change from False to True starts the application at the
+        start of the chunk (t_app counts from there); True to False releases.
+    """
+
+    emergency: bool = False
+
+
+@dataclass(frozen=True)
+class Event:
+    """Something that happened during the run.
+
+    Attributes
+    ----------
+    time_s : float
+        Simulated time [s].
+    kind : str
+        ``brake_applied``, ``brake_released``, ``stopped`` or ``coupler_out_of_lut``.
+    detail : dict
+        Kind-specific values (units in the keys).
+    """
+
+    time_s: float
+    kind: str
+    detail: dict = field(default_factory=dict)
+
+    def describe(self) -> str:
+        """One-line human description."""
+        d = self.detail
+        if self.kind == "stopped":
+            return (f"t = {self.time_s:.2f} s: train stopped, stopping distance "
+                    f"{d['stopping_distance_m']:.1f} m")
+        if self.kind == "coupler_out_of_lut":
+            return (f"t = {self.time_s:.2f} s: coupler {d['coupler']} left the coupler table "
+                    f"range (deflection {d['deflection_mm']:.1f} mm); forces beyond it are "
+                    "extrapolated with the end slope")
+        return f"t = {self.time_s:.2f} s: {self.kind.replace('_', ' ')}"
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """State of the train at the end of a chunk.
+
+    Attributes
+    ----------
+    time_s : float
+        Simulated time [s].
+    position_m : ndarray
+        Chainage of each vehicle's centre; the head's front starts at 0 [m].
+    speed_m_s : ndarray
+        Speed of each vehicle, forward positive [m/s].
+    brake_force_N : ndarray
+        Air-brake retarding force of each vehicle, positive [N].
+    block_force_N : ndarray
+        Total force on the brake blocks/pads of each vehicle, F_B,tot [N].
+    coupler_force_N : ndarray
+        Force of couplers 1..n-1, draft positive, buff negative [N].
+    events : tuple of Event
+        Events that happened during this chunk.
+    stopped : bool
+        Every vehicle is at standstill (slower than the simulator's ``standstill_m_s``).
+    """
+
+    time_s: float
+    position_m: np.ndarray
+    speed_m_s: np.ndarray
+    brake_force_N: np.ndarray
+    block_force_N: np.ndarray
+    coupler_force_N: np.ndarray
+    events: tuple = ()
+    stopped: bool = False
+
+
+class Simulator:
+    """Longitudinal dynamics of one train under the empirical UIC air brake.
+
+    Parameters
+    ----------
+    consist : Consist
+        The train, head first.
+    speed_kmh : float
+        Initial speed of every vehicle [km/h].
+    params : BrakeParams, optional
+        Brake-model parameters (default: Table 3 and the paper's K0).
+    lut : CouplerLUT
+        Coupler characteristic.
+    step_s : float, optional
+        Largest integration step [s]; chunks are split into equal steps no longer than this.
+    resistance : bool, optional
+        Apply running resistance, Eq. 2.
+    brakes : bool, optional
+        Apply air-brake forces (False keeps the brake state but no force reaches the wheels).
+    max_newton_iter : int, optional
+        Newton iterations allowed per step before the step counts as failed.
+    newton_rtol : float, optional
+        Residual tolerance, relative to each vehicle's weight.
+    standstill_m_s : float, optional
+        The train counts as stopped once every vehicle is slower than this [m/s]. Vehicles that
+        reach zero speed are held exactly by static friction; one pulled by a coupler that is
+        still inside the Eq. 3 band may creep at less than v_th while that coupler relaxes.
+    """
+
+    def __init__(self, consist: Consist, speed_kmh: float, params: BrakeParams | None = None,
+                 lut: CouplerLUT | None = None, *, step_s: float = 0.01,
+                 resistance: bool = True, brakes: bool = True, max_newton_iter: int = 40,
+                 newton_rtol: float = 1e-9, standstill_m_s: float = 1e-3):
+        if lut is None:
+            from .inputs import load_coupler_lut
+
+            lut = load_coupler_lut()
+        params = params or BrakeParams()
+        if not (math.isfinite(speed_kmh) and 0.0 <= speed_kmh <= 400.0):
+            raise InputError("speed_kmh", "", f"must be between 0 and 400 km/h, got {speed_kmh}")
+        if not (math.isfinite(step_s) and 1e-5 <= step_s <= 0.5):
+            raise InputError("step_s", "", f"must be between 1e-5 and 0.5 s, got {step_s}")
+        self.consist, self.params, self.lut = consist, params, lut
+        self.speed_kmh = float(speed_kmh)
+        self.step_s = float(step_s)
+        self.max_newton_iter = int(max_newton_iter)
+        self.newton_rtol = float(newton_rtol)
+        self.standstill_m_s = float(standstill_m_s)
+        self._resist = 1.0 if resistance else 0.0
+        self._brakes = bool(brakes)
+        vs = consist.vehicles
+        n = len(vs)
+        self.n = n
+        self.mass_kg = np.array([v.mass_kg for v in vs])
+        self.length_m = np.array([v.length_m for v in vs])
+        self._meff = self.mass_kg * np.array([v.inertia_factor for v in vs])
+        self._axles = np.array([float(v.axles) for v in vs])
+        self._kind = np.zeros(n, np.int64)
+        self._blocks = np.ones(n)
+        self._arr = np.zeros(n, np.int64)
+        self._mu_disc = np.zeros(n)
+        #: Maximum block force of each vehicle, 1000 * sum(F_dyn) (Eq. 4 inverted) [N].
+        self.max_block_force_N = np.zeros(n)
+        for i, v in enumerate(vs):
+            b = v.brake
+            if isinstance(b, BlockBrake):
+                self._kind[i] = BRAKE_BLOCKS
+                self._blocks[i] = b.blocks
+                self._arr[i] = ARR_BGU if b.arrangement == "Bgu" else ARR_BG
+                s = sum_block_force_kN(b.braked_weight_t, float(b.blocks), params.k0,
+                                       int(self._arr[i]))
+                if not math.isfinite(s):
+                    raise InputError(consist.source, f"vehicles[{i}].brake",
+                                     "Eq. 4 could not be inverted for this braked weight")
+                self.max_block_force_N[i] = 1000.0 * s
+            elif isinstance(b, DiscBrake):
+                self._kind[i] = BRAKE_DISC
+                self._mu_disc[i] = b.mu_eff if b.mu_eff is not None else params.mu_eff
+                k = b.k if b.k is not None else params.k_loco
+                self.max_block_force_N[i] = 1000.0 * b.braked_weight_t * 9.81 / k
+            else:
+                self._kind[i] = BRAKE_NONE
+        # vehicle centres behind the head's front [m]; Eq. 6 delay from the head's centre
+        front = np.concatenate(([0.0], np.cumsum(self.length_m)[:-1]))
+        self._centre_offset_m = front + 0.5 * self.length_m
+        self.brake_delay_s = params.t_app_s + (self._centre_offset_m - self._centre_offset_m[0]) \
+            / params.v_air_m_s
+        self._fmax = self.max_block_force_N if self._brakes else np.zeros(n)
+        xs = np.asarray(lut.deflection_m, float)
+        self._xs, self._fl, self._fu = xs, np.asarray(lut.loading_N, float), np.asarray(
+            lut.unloading_N, float)
+        self.fext_N = np.zeros(n)
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+
+    def reset(self) -> Snapshot:
+        """Return to the initial state: initial speed, brake released, time 0.
+
+        Returns
+        -------
+        Snapshot
+        """
+        n = self.n
+        v0 = self.speed_kmh / KMH_PER_MS
+        self.time_s = 0.0
+        self._hp = 0.0
+        self._x = np.zeros(n)
+        self._v = np.full(n, v0)
+        self._xp = np.zeros(n)
+        self._vp = np.full(n, v0)
+        self._stuck = self._v == 0.0
+        self._sgn = np.where(self._v > 0.0, 1.0, 0.0)
+        self._fb = np.zeros(n)
+        self._lvl = np.zeros(n)
+        self._nxt = np.zeros(n, np.int64)
+        self._ev_t = np.zeros(8)
+        self._ev_lvl = np.zeros(8)
+        self._n_ev = 0
+        self._fc = np.zeros(max(n - 1, 1))
+        self._fbrake = np.zeros(n)
+        nc = max(n - 1, 1)
+        self._peak_draft = np.zeros(nc)
+        self._t_draft = np.zeros(nc)
+        self._peak_buff = np.zeros(nc)
+        self._t_buff = np.zeros(nc)
+        self._lut_out = np.zeros(nc)
+        self._t_lut_out = np.full(nc, -1.0)
+        self._stats = np.zeros(5, np.int64)
+        self._emergency = False
+        self.command_time_s: float | None = None
+        self._x_cmd = 0.0
+        self.stop_time_s: float | None = None
+        self.stopping_distance_m: float | None = None
+        self.events: list[Event] = []
+        self._reported_lut = np.zeros(nc, bool)
+        self._failed = False
+        return self.snapshot()
+
+    @property
+    def steps(self) -> int:
+        """Integration steps taken since the last reset."""
+        return int(self._stats[0])
+
+    @property
+    def newton_iterations(self) -> int:
+        """Newton iterations (linear solves) since the last reset."""
+        return int(self._stats[1])
+
+    @property
+    def max_newton_iterations(self) -> int:
+        """Most Newton iterations any single step needed."""
+        return int(self._stats[2])
+
+    @property
+    def stopped(self) -> bool:
+        """True when every vehicle is slower than ``standstill_m_s``."""
+        return bool(np.all(np.abs(self._v) <= self.standstill_m_s))
+
+    @property
+    def peak_draft_N(self) -> np.ndarray:
+        """Largest draft (tension) force per coupler so far [N] (0 if never in draft)."""
+        return self._peak_draft[: self.n - 1].copy()
+
+    @property
+    def peak_buff_N(self) -> np.ndarray:
+        """Largest buff (compression) force per coupler so far, negative [N]."""
+        return self._peak_buff[: self.n - 1].copy()
+
+    @property
+    def peak_draft_time_s(self) -> np.ndarray:
+        """Time of each coupler's peak draft force [s]."""
+        return self._t_draft[: self.n - 1].copy()
+
+    @property
+    def peak_buff_time_s(self) -> np.ndarray:
+        """Time of each coupler's peak buff force [s]."""
+        return self._t_buff[: self.n - 1].copy()
+
+    @property
+    def lut_excursion_m(self) -> np.ndarray:
+        """Largest deflection beyond the coupler table per coupler [m] (0 if never)."""
+        return self._lut_out[: self.n - 1].copy()
+
+    def braked_weight_percent(self) -> float:
+        """Train braked-weight percentage lambda_train, Eq. 11 [%]."""
+        return train_braked_weight_percent([v.braked_weight_t for v in self.consist.vehicles],
+                                           self.mass_kg / 1000.0, self.consist.length_m)
+
+    def snapshot(self, events: tuple = ()) -> Snapshot:
+        """Current state as a :class:`Snapshot`.
+
+        Parameters
+        ----------
+        events : tuple of Event, optional
+            Events to attach.
+
+        Returns
+        -------
+        Snapshot
+        """
+        n = self.n
+        return Snapshot(self.time_s, self._x - self._centre_offset_m, self._v.copy(),
+                        self._fbrake.copy() if self._brakes else np.zeros(n),
+                        self._fb.copy(), self._fc[: n - 1].copy(), tuple(events), self.stopped)
+
+    # ------------------------------------------------------------------ integration
+
+    def _add_event(self, level: float) -> None:
+        # drop events every vehicle has already received
+        done = int(self._nxt.min())
+        if done:
+            keep = slice(done, self._n_ev)
+            self._ev_t[: self._n_ev - done] = self._ev_t[keep].copy()
+            self._ev_lvl[: self._n_ev - done] = self._ev_lvl[keep].copy()
+            self._n_ev -= done
+            self._nxt -= done
+        if self._n_ev == self._ev_t.size:
+            self._ev_t = np.concatenate((self._ev_t, np.zeros(self._ev_t.size)))
+            self._ev_lvl = np.concatenate((self._ev_lvl, np.zeros(self._ev_lvl.size)))
+        self._ev_t[self._n_ev] = self.time_s
+        self._ev_lvl[self._n_ev] = level
+        self._n_ev += 1
+
+    def _apply_commands(self, commands: Commands, events: list) -> None:
+        if commands.emergency and not self._emergency:
+            self._emergency = True
+            self._add_event(1.0)
+            if self.command_time_s is None:
+                self.command_time_s = self.time_s
+                self._x_cmd = float(self._x[0])
+            events.append(Event(self.time_s, "brake_applied"))
+        elif not commands.emergency and self._emergency:
+            self._emergency = False
+            self._add_event(0.0)
+            events.append(Event(self.time_s, "brake_released"))
+
+    def advance(self, duration_s: float, commands: Commands | None = None) -> Snapshot:
+        """Integrate one chunk of simulated time.
+
+        Parameters
+        ----------
+        duration_s : float
+            Simulated time to advance [s] (> 0).
+        commands : Commands, optional
+            Inputs for this chunk; ``None`` keeps the previous ones.
+
+        Returns
+        -------
+        Snapshot
+            State at the end of the chunk, with the events that happened in it.
+
+        Raises
+        ------
+        SimulationError
+            A step did not converge.
+        """
+        if not (math.isfinite(duration_s) and duration_s > 0.0):
+            raise ValueError(f"duration_s must be a positive finite number, got {duration_s}")
+        if self._failed:
+            raise SimulationError("the simulator stopped after a failed step; call reset()")
+        events: list[Event] = []
+        if commands is not None:
+            self._apply_commands(commands, events)
+        nsteps = max(1, math.ceil(duration_s / self.step_s - 1e-9))
+        h = duration_s / nsteps
+        remaining = nsteps
+        while remaining:
+            watch = self.stop_time_s is None and self.command_time_s is not None
+            code, t, hp, done = kernel.run_steps(
+                remaining, h, self.time_s, self._hp, self._x, self._v, self._xp, self._vp,
+                self._stuck, self._sgn, self._meff, self.mass_kg, self._axles, self._kind,
+                self._blocks, self._arr, self._mu_disc, self.fext_N, self._resist,
+                self._xs, self._fl, self._fu, self.lut.v_th_m_s,
+                self._fb, self._lvl, self._nxt, self.brake_delay_s, self._fmax, self._ev_t,
+                self._ev_lvl, self._n_ev, self.params.tau_apply_s, self.params.tau_release_s,
+                self._fc, self._fbrake, self._peak_draft, self._t_draft, self._peak_buff,
+                self._t_buff, self._lut_out, self._t_lut_out, self._stats,
+                self.max_newton_iter, self.newton_rtol, watch, self.standstill_m_s)
+            self.time_s, self._hp = t, hp
+            remaining -= done
+            if code == kernel.NEWTON_FAILED:
+                self._failed = True
+                raise SimulationError(
+                    f"Newton iteration did not converge within {self.max_newton_iter} "
+                    f"iterations in the step starting at t = {t:.4f} s (step {h:.4g} s)")
+            if code == kernel.STOPPED:
+                self.stop_time_s = self.time_s
+                self.stopping_distance_m = float(self._x[0]) - self._x_cmd
+                events.append(Event(self.time_s, "stopped", {
+                    "stopping_distance_m": self.stopping_distance_m,
+                    "stop_time_s": self.time_s - self.command_time_s}))
+        self._report_lut_exits(events)
+        self.events.extend(events)
+        return self.snapshot(tuple(events))
+
+    def _report_lut_exits(self, events: list) -> None:
+        nc = self.n - 1
+        new = (self._t_lut_out[:nc] >= 0.0) & ~self._reported_lut[:nc]
+        for j in np.flatnonzero(new):
+            self._reported_lut[j] = True
+            d = float(self._x[j] - self._x[j + 1])
+            events.append(Event(float(self._t_lut_out[j]), "coupler_out_of_lut", {
+                "coupler": int(j) + 1, "deflection_mm": d * 1e3,
+                "beyond_table_mm": float(self._lut_out[j]) * 1e3}))
