@@ -40,6 +40,16 @@ def _model(args):
     return load_brake_params(args.params), load_coupler_lut(args.lut, args.v_th_mm_s)
 
 
+def _track(args):
+    from .inputs import Track, load_track
+
+    if args.track:
+        return load_track(args.track, args.start_chainage_m)
+    if args.start_chainage_m is not None:
+        return Track(start_chainage_m=args.start_chainage_m)
+    return None
+
+
 def cmd_simulate(args) -> int:
     """Run one emergency stop and print its summary."""
     from .inputs import get_scenario, load_consist
@@ -56,8 +66,11 @@ def cmd_simulate(args) -> int:
         consist = load_consist(args.consist)
         speed = 100.0 if speed is None else speed
     params, lut = _model(args)
+    track = _track(args)
+    if args.commands:
+        return _simulate_script(args, consist, speed, params, lut, track)
     events = []
-    res = emergency_stop(consist, speed, params, lut, step_s=args.step_s,
+    res = emergency_stop(consist, speed, params, lut, track, step_s=args.step_s,
                          on_chunk=lambda s: events.extend(s.events))
     lut_events = [e for e in events if e.kind == "coupler_out_of_lut"]
     if args.json:
@@ -84,6 +97,58 @@ def cmd_simulate(args) -> int:
     print(f"cost             {res.wall_time_s * 1e3:.0f} ms wall, {res.real_time_factor:.0f}x "
           f"real time, {res.steps} steps, {res.newton_iterations_per_step:.2f} Newton "
           "iterations per step")
+    return 0
+
+
+def _simulate_script(args, consist, speed, params, lut, track) -> int:
+    """Run a command script and print what happened."""
+    import time
+
+    import numpy as np
+
+    from .inputs import load_command_script
+    from .runs import scripted_run
+
+    script = load_command_script(args.commands)
+    events = []
+    head = {"t": [], "v": []}
+
+    def collect(snap):
+        events.extend(snap.events)
+
+    start = time.perf_counter()
+    sim = scripted_run(consist, speed, script, params, lut, track, step_s=args.step_s,
+                       on_chunk=collect)
+    wall = time.perf_counter() - start
+    snap = sim.snapshot()
+    draft, buff = sim.peak_draft_N, sim.peak_buff_N
+    jd = int(np.argmax(draft)) if draft.size else 0
+    jb = int(np.argmin(buff)) if buff.size else 0
+    out = {
+        "consist": consist.name, "vehicles": consist.n, "commands_file": script.source,
+        "duration_s": sim.time_s, "final_speed_kmh": float(snap.speed_m_s[0]) * 3.6,
+        "distance_travelled_m": float(sim._x[0]),
+        "stopping_distance_m": sim.stopping_distance_m,
+        "stop_time_s": None if sim.stop_time_s is None else sim.stop_time_s - sim.command_time_s,
+        "peak_draft_kN": float(draft[jd]) / 1e3 if draft.size else 0.0,
+        "peak_draft_coupler": jd + 1,
+        "peak_buff_kN": float(buff[jb]) / 1e3 if buff.size else 0.0,
+        "peak_buff_coupler": jb + 1,
+        "events": [dict(e.detail, kind=e.kind, time_s=e.time_s) for e in events],
+        "wall_time_s": wall, "real_time_factor": sim.time_s / wall if wall > 0 else None,
+    }
+    del head
+    if args.json:
+        print(json.dumps(out, indent=2))
+        return 0
+    print(f"train            {consist.name}: {consist.n} vehicles; script {script.source}")
+    print(f"ran              {sim.time_s:.1f} s, {out['distance_travelled_m']:.1f} m, final "
+          f"speed {out['final_speed_kmh']:.1f} km/h")
+    for e in events:
+        print(f"event            {e.describe()}")
+    print(f"peak draft       {out['peak_draft_kN']:.1f} kN at coupler {jd + 1}")
+    print(f"peak buff        {out['peak_buff_kN']:.1f} kN at coupler {jb + 1}")
+    print(f"cost             {wall * 1e3:.0f} ms wall, {out['real_time_factor']:.0f}x real time")
     return 0
 
 
@@ -195,6 +260,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--speed-kmh", type=float, metavar="KMH",
                    help="initial speed [km/h] (default: the scenario's, else 100)")
     _add_model_options(p)
+    p.add_argument("--track", metavar="FILE",
+                   help="track profile, YAML (sections: from_m, gradient_permille uphill "
+                        "positive, radius_m) or CSV (chainage_m,gradient_permille,radius_m); "
+                        "default: level straight track")
+    p.add_argument("--start-chainage-m", type=float, metavar="M",
+                   help="chainage of the head's front at t = 0 [m] (default: the track file's)")
+    p.add_argument("--commands", metavar="FILE",
+                   help="command script (t_s -> traction -1..1, brake_demand 0..1, emergency); "
+                        "without it the emergency brake is applied at t = 0")
     p.add_argument("--json", action="store_true", help="print one JSON object (units in the keys)")
     p.set_defaults(func=cmd_simulate)
 

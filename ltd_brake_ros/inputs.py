@@ -236,7 +236,15 @@ class BrakeParams:
     mu_eff : float
         Effective disc friction coefficient of Eq. 10 [-].
     t_release_s : float
-        Release time: block force decays with tau = t_release / ln 20 (not in the paper) [s].
+        Release time in P: block force decays with tau = t_release / ln 20 (not in the
+        paper) [s].
+    t_fill_G_s : float
+        Brake-cylinder filling time of vehicles in G (UIC 540: 18-30 s) [s]. Not validated.
+    t_release_G_s : float
+        Release time of vehicles in G (UIC 540: 45-60 s) [s]. Not validated.
+    t_service_fill_s : float
+        Filling time of a service application in P; G vehicles scale it by
+        t_fill_G / t_fill. A default for experiments, not validated [s].
     source : str
         File the values came from.
     """
@@ -248,6 +256,9 @@ class BrakeParams:
     k_loco: float = 3.54
     mu_eff: float = 0.264
     t_release_s: float = 15.0
+    t_fill_G_s: float = 25.0
+    t_release_G_s: float = 50.0
+    t_service_fill_s: float = 7.0
     source: str = "built-in defaults"
 
     @property
@@ -261,7 +272,8 @@ class BrakeParams:
         return self.t_release_s / math.log(20.0)
 
 
-_BRAKE_FIELDS = {"t_app_s", "v_air_m_s", "t_fill_s", "k0", "k_loco", "mu_eff", "t_release_s"}
+_BRAKE_FIELDS = {"t_app_s", "v_air_m_s", "t_fill_s", "k0", "k_loco", "mu_eff", "t_release_s",
+                 "t_fill_G_s", "t_release_G_s", "t_service_fill_s"}
 
 
 def brake_params_from_mapping(data: Any, source: str) -> BrakeParams:
@@ -289,6 +301,10 @@ def brake_params_from_mapping(data: Any, source: str) -> BrakeParams:
         k_loco=f.number("k_loco", d.k_loco, lo=0.0, lo_open=True, hi=100.0),
         mu_eff=f.number("mu_eff", d.mu_eff, lo=0.0, lo_open=True, hi=1.0),
         t_release_s=f.number("t_release_s", d.t_release_s, lo=0.0, lo_open=True, hi=600.0),
+        t_fill_G_s=f.number("t_fill_G_s", d.t_fill_G_s, lo=0.0, lo_open=True, hi=300.0),
+        t_release_G_s=f.number("t_release_G_s", d.t_release_G_s, lo=0.0, lo_open=True, hi=600.0),
+        t_service_fill_s=f.number("t_service_fill_s", d.t_service_fill_s, lo=0.0, lo_open=True,
+                                  hi=300.0),
         source=str(source),
     )
 
@@ -397,12 +413,15 @@ class BlockBrake:
     arrangement : str
         ``Bg`` (one block per wheel) or ``Bgu`` (two blocks per wheel).
     braked_weight_t : float
-        Braked weight for the vehicle's mass (after any empty/loaded changeover) [t].
+        Braked weight in P for the vehicle's mass (after any empty/loaded changeover) [t].
+    braked_weight_G_t : float or None
+        Braked weight in G [t]; ``None``: the same as in P.
     """
 
     blocks: int
     arrangement: str
     braked_weight_t: float
+    braked_weight_G_t: float | None = None
 
 
 @dataclass(frozen=True)
@@ -412,16 +431,46 @@ class DiscBrake:
     Attributes
     ----------
     braked_weight_t : float
-        Braked weight [t].
+        Braked weight in P [t].
     k : float or None
         Constant k factor; ``None`` takes ``k_loco`` from the brake parameters.
     mu_eff : float or None
         Effective friction coefficient; ``None`` takes ``mu_eff`` from the brake parameters.
+    braked_weight_G_t : float or None
+        Braked weight in G [t]; ``None``: the same as in P.
     """
 
     braked_weight_t: float
     k: float | None = None
     mu_eff: float | None = None
+    braked_weight_G_t: float | None = None
+
+
+@dataclass(frozen=True)
+class Traction:
+    """Tractive-effort and dynamic-brake curves of a powered vehicle, F(v) = min(F_max, P/v).
+
+    Attributes
+    ----------
+    max_force_N, max_power_W : float
+        Traction limits [N], [W].
+    brake_max_force_N, brake_max_power_W : float
+        Dynamic-brake limits [N], [W] (0: no dynamic brake).
+    rate_limit_N_s : float
+        Largest change of the applied force per second [N/s].
+    time_constant_s : float
+        First-order lag between demand and applied force [s].
+    fade_speed_m_s : float
+        Below this speed the dynamic brake fades linearly to zero [m/s].
+    """
+
+    max_force_N: float
+    max_power_W: float
+    brake_max_force_N: float = 0.0
+    brake_max_power_W: float = 0.0
+    rate_limit_N_s: float = 50e3
+    time_constant_s: float = 1.0
+    fade_speed_m_s: float = 5.0 / 3.6
 
 
 @dataclass(frozen=True)
@@ -442,6 +491,10 @@ class Vehicle:
         Rotating-mass factor rho of Eq. 1 [-].
     brake : BlockBrake, DiscBrake or None
         Air brake; ``None`` for an unbraked vehicle.
+    brake_position : str
+        ``P`` (passenger, the validated position) or ``G`` (goods).
+    traction : Traction or None
+        Traction and dynamic brake of a powered vehicle.
     """
 
     name: str
@@ -450,11 +503,21 @@ class Vehicle:
     axles: int
     inertia_factor: float
     brake: BlockBrake | DiscBrake | None
+    brake_position: str = "P"
+    traction: Traction | None = None
 
     @property
     def braked_weight_t(self) -> float:
-        """Braked weight [t] (0 when unbraked)."""
-        return self.brake.braked_weight_t if self.brake is not None else 0.0
+        """Braked weight in the vehicle's brake position [t] (0 when unbraked).
+
+        A vehicle set to G inside a train braked in P counts with its braked weight in G (the
+        braked weight belongs to the position the brake is set to).
+        """
+        if self.brake is None:
+            return 0.0
+        if self.brake_position == "G" and self.brake.braked_weight_G_t is not None:
+            return self.brake.braked_weight_G_t
+        return self.brake.braked_weight_t
 
 
 @dataclass(frozen=True)
@@ -492,7 +555,7 @@ class Consist:
 
 
 _VEHICLE_FIELDS = {"type", "count", "description", "mass_t", "length_m", "axles",
-                   "inertia_factor", "brake"}
+                   "inertia_factor", "brake", "brake_position", "traction"}
 _BRAKE_TYPES = ("blocks", "disc", "none")
 
 
@@ -503,14 +566,14 @@ def _parse_brake(data: Any, mass_t: float, source: str, path: str) -> BlockBrake
         f.reject_unknown({"type"})
         return None
     if kind == "disc":
-        f.reject_unknown({"type", "braked_weight_t", "k", "mu_eff"})
+        f.reject_unknown({"type", "braked_weight_t", "braked_weight_G_t", "k", "mu_eff"})
         b = f.number("braked_weight_t", lo=0.0, lo_open=True)
         _check_braked_weight(f, "braked_weight_t", b, mass_t)
         k = f.number("k", lo=0.0, lo_open=True) if f.has("k") else None
         mu = f.number("mu_eff", lo=0.0, lo_open=True, hi=1.0) if f.has("mu_eff") else None
-        return DiscBrake(b, k, mu)
+        return DiscBrake(b, k, mu, _braked_weight_g(f, mass_t))
     f.reject_unknown({"type", "blocks", "arrangement", "braked_weight_t", "braked_weight_empty_t",
-                      "braked_weight_loaded_t", "changeover_mass_t"})
+                      "braked_weight_loaded_t", "changeover_mass_t", "braked_weight_G_t"})
     blocks = f.integer("blocks", lo=1, hi=64)
     arrangement = f.string("arrangement", "Bg", choices=("Bg", "Bgu"))
     if f.has("braked_weight_t"):
@@ -532,7 +595,29 @@ def _parse_brake(data: Any, mass_t: float, source: str, path: str) -> BlockBrake
         name, b = ("braked_weight_loaded_t", loaded) if mass_t >= change else (
             "braked_weight_empty_t", empty)
         _check_braked_weight(f, name, b, mass_t)
-    return BlockBrake(blocks, arrangement, b)
+    return BlockBrake(blocks, arrangement, b, _braked_weight_g(f, mass_t))
+
+
+def _braked_weight_g(f: "_Fields", mass_t: float) -> float | None:
+    if not f.has("braked_weight_G_t"):
+        return None
+    b = f.number("braked_weight_G_t", lo=0.0, lo_open=True)
+    _check_braked_weight(f, "braked_weight_G_t", b, mass_t)
+    return b
+
+
+def _parse_traction(data: Any, source: str, path: str) -> Traction:
+    f = _Fields(data, source, path)
+    f.reject_unknown({"max_force_kN", "max_power_kW", "brake_max_force_kN", "brake_max_power_kW",
+                      "rate_limit_kN_s", "time_constant_s", "fade_speed_kmh"})
+    return Traction(
+        max_force_N=1e3 * f.number("max_force_kN", lo=0.0, lo_open=True, hi=2000.0),
+        max_power_W=1e3 * f.number("max_power_kW", lo=0.0, lo_open=True, hi=50000.0),
+        brake_max_force_N=1e3 * f.number("brake_max_force_kN", 0.0, lo=0.0, hi=2000.0),
+        brake_max_power_W=1e3 * f.number("brake_max_power_kW", 0.0, lo=0.0, hi=50000.0),
+        rate_limit_N_s=1e3 * f.number("rate_limit_kN_s", 50.0, lo=0.0, lo_open=True, hi=1e5),
+        time_constant_s=f.number("time_constant_s", 1.0, lo=0.0, lo_open=True, hi=60.0),
+        fade_speed_m_s=f.number("fade_speed_kmh", 5.0, lo=0.0, lo_open=True, hi=100.0) / 3.6)
 
 
 def _check_braked_weight(f: _Fields, name: str, b_t: float, mass_t: float) -> None:
@@ -608,8 +693,12 @@ def consist_from_mapping(data: Any, source: str, base: Path | None = None) -> Co
         if not g.has("brake"):
             raise g.error("brake", "missing: give a brake (type blocks, disc or none)")
         brake = _parse_brake(g.data["brake"], mass_t, source, g.sub("brake"))
+        position = g.string("brake_position", "P", choices=("P", "G"))
+        traction = _parse_traction(g.data["traction"], source, g.sub("traction")) \
+            if g.has("traction") else None
         name = str(f.data.get("type", f"vehicle {i}"))
-        vehicles.extend([Vehicle(name, mass_t * 1e3, length, axles, rho, brake)] * count)
+        vehicles.extend([Vehicle(name, mass_t * 1e3, length, axles, rho, brake, position,
+                                 traction)] * count)
     return Consist(str(top.data.get("name") or Path(source).stem), tuple(vehicles), str(source))
 
 
@@ -711,3 +800,170 @@ def get_scenario(name: str | int) -> Scenario:
         return catalogue[int(text)]
     raise InputError("scenario", "", f"unknown scenario {name!r}; known: "
                      f"{', '.join(str(k) for k in sorted(catalogue))}")
+
+
+# --------------------------------------------------------------------------- track
+
+
+@dataclass(frozen=True)
+class Track:
+    """Track profile: sections starting at given chainages.
+
+    Attributes
+    ----------
+    chainage_m : tuple of float
+        Start of each section, strictly increasing [m]; a section runs to the next start, the
+        last to infinity; before the first start the first section applies.
+    gradient_permille : tuple of float
+        Gradient of each section, positive uphill in the direction of travel [per mille].
+    radius_m : tuple of float
+        Curve radius of each section, 0 on straight track [m].
+    start_chainage_m : float
+        Chainage of the head's front at t = 0 [m].
+    source : str
+        File the profile came from.
+    """
+
+    chainage_m: tuple[float, ...] = (0.0,)
+    gradient_permille: tuple[float, ...] = (0.0,)
+    radius_m: tuple[float, ...] = (0.0,)
+    start_chainage_m: float = 0.0
+    source: str = "level straight track"
+
+
+#: Smallest curve radius accepted [m] (Roeckl's formula holds for main-line curves).
+MIN_RADIUS_M = 100.0
+
+
+def load_track(path: str | os.PathLike, start_chainage_m: float | None = None) -> Track:
+    """Load a track profile from YAML or CSV.
+
+    YAML: ``start_chainage_m`` (optional) and ``sections``, a list of mappings with
+    ``from_m``, ``gradient_permille`` (default 0) and ``radius_m`` (default 0 = straight).
+    CSV: a header ``chainage_m,gradient_permille,radius_m`` and one row per section.
+
+    Parameters
+    ----------
+    path : str or path-like
+    start_chainage_m : float, optional
+        Overrides the file's start chainage of the head [m].
+
+    Returns
+    -------
+    Track
+    """
+    p = resolve_config_path(path)
+    rows: list[tuple[float, float, float]] = []
+    start = 0.0
+    if p.suffix.lower() == ".csv":
+        import csv
+
+        if not p.is_file():
+            raise InputError(p, "", "file does not exist")
+        with open(p, newline="", encoding="utf-8") as fh:
+            reader = csv.DictReader(fh)
+            need = {"chainage_m", "gradient_permille"}
+            if not reader.fieldnames or not need <= set(reader.fieldnames):
+                raise InputError(p, "header", "needs columns chainage_m, gradient_permille "
+                                 "and optionally radius_m")
+            for i, row in enumerate(reader):
+                f = _Fields({k: _csv_number(v) for k, v in row.items() if k}, str(p), f"row {i + 2}")
+                rows.append((f.number("chainage_m"), f.number("gradient_permille", lo=-100, hi=100),
+                             f.number("radius_m", 0.0, lo=0.0)))
+    else:
+        top = _Fields(load_yaml(p), str(p))
+        top.reject_unknown({"name", "description", "start_chainage_m", "sections"})
+        start = top.number("start_chainage_m", 0.0)
+        sections = top.data.get("sections")
+        if not isinstance(sections, list) or not sections:
+            raise top.error("sections", "missing or empty: give a list of sections with from_m")
+        for i, sec in enumerate(sections):
+            f = _Fields(sec, str(p), f"sections[{i}]")
+            f.reject_unknown({"from_m", "gradient_permille", "radius_m"})
+            rows.append((f.number("from_m"), f.number("gradient_permille", 0.0, lo=-100, hi=100),
+                         f.number("radius_m", 0.0, lo=0.0)))
+    if not rows:
+        raise InputError(p, "", "has no sections")
+    for i, (ch, _g, r) in enumerate(rows):
+        if i and not ch > rows[i - 1][0]:
+            raise InputError(p, f"sections[{i}]", f"chainage {ch:g} m is not after {rows[i - 1][0]:g} m")
+        if 0.0 < r < MIN_RADIUS_M:
+            raise InputError(p, f"sections[{i}].radius_m",
+                             f"{r:g} m is below {MIN_RADIUS_M:g} m (0 means straight)")
+    if start_chainage_m is not None:
+        start = float(start_chainage_m)
+    return Track(tuple(r[0] for r in rows), tuple(r[1] for r in rows), tuple(r[2] for r in rows),
+                 start, str(p))
+
+
+def _csv_number(text: str | None) -> Any:
+    if text is None or text.strip() == "":
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+# --------------------------------------------------------------------------- command scripts
+
+
+@dataclass(frozen=True)
+class CommandScript:
+    """Timed driver inputs for an offline run.
+
+    Attributes
+    ----------
+    steps : tuple of (float, dict)
+        (time [s], fields that change then: ``emergency`` bool, ``brake_demand`` 0-1,
+        ``traction`` -1-1), sorted by time.
+    duration_s : float or None
+        Length of the run [s]; ``None``: until the train stops after a brake command.
+    source : str
+        File the script came from.
+    """
+
+    steps: tuple
+    duration_s: float | None = None
+    source: str = ""
+
+
+def load_command_script(path: str | os.PathLike) -> CommandScript:
+    """Load a command script YAML file.
+
+    The file holds ``duration_s`` (optional) and ``commands``, a list of mappings with ``t_s``
+    and any of ``emergency``, ``brake_demand``, ``traction``; each holds from its time on.
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    CommandScript
+    """
+    p = resolve_config_path(path)
+    top = _Fields(load_yaml(p), str(p))
+    top.reject_unknown({"name", "description", "duration_s", "commands"})
+    duration = top.number("duration_s", lo=0.0, lo_open=True, hi=1e6) if top.has("duration_s") else None
+    entries = top.data.get("commands")
+    if not isinstance(entries, list) or not entries:
+        raise top.error("commands", "missing or empty: give a list of {t_s, ...} entries")
+    steps = []
+    for i, entry in enumerate(entries):
+        f = _Fields(entry, str(p), f"commands[{i}]")
+        f.reject_unknown({"t_s", "emergency", "brake_demand", "traction"})
+        t = f.number("t_s", lo=0.0)
+        if steps and t < steps[-1][0]:
+            raise f.error("t_s", f"{t:g} s comes before the previous entry ({steps[-1][0]:g} s)")
+        change: dict[str, Any] = {}
+        if f.has("emergency"):
+            if not isinstance(f.data["emergency"], bool):
+                raise f.error("emergency", f"must be true or false, got {f.data['emergency']!r}")
+            change["emergency"] = f.data["emergency"]
+        if f.has("brake_demand"):
+            change["brake_demand"] = f.number("brake_demand", lo=0.0, hi=1.0)
+        if f.has("traction"):
+            change["traction"] = f.number("traction", lo=-1.0, hi=1.0)
+        steps.append((t, change))
+    return CommandScript(tuple(steps), duration, str(p))

@@ -35,8 +35,14 @@ def _relax(force, target, dt, tau_apply, tau_release):
 
 
 @jit
-def advance_brakes(t0, t1, fb, lvl, nxt, delay, fmax, ev_t, ev_lvl, n_ev, tau_apply, tau_release):
+def advance_brakes(t0, t1, fb, lvl, lkind, nxt, delay, fmax, tau_emergency, tau_service,
+                   tau_release, ev_t, ev_lvl, ev_kind, n_ev):
     """Advance every vehicle's block force exactly from t0 to t1 (in place).
+
+    Each vehicle relaxes exponentially towards ``level * fmax``, where the level is that of
+    the last command event it has received (event time + its delay). An increase follows the
+    application time constant of the event's kind (0 emergency, 1 service), a decrease the
+    release time constant. For an emergency application from rest this is Eq. 5.
 
     Parameters
     ----------
@@ -44,38 +50,123 @@ def advance_brakes(t0, t1, fb, lvl, nxt, delay, fmax, ev_t, ev_lvl, n_ev, tau_ap
         Step start and end [s].
     fb : ndarray
         Block force of each vehicle at t0, replaced by the value at t1 [N].
-    lvl : ndarray
-        Command level (0-1) each vehicle currently follows.
+    lvl, lkind : ndarray
+        Level (0-1) and kind of the command each vehicle currently follows.
     nxt : ndarray of int
         Index of the next command event each vehicle has not yet received.
     delay : ndarray
         t_app + t_del of each vehicle [s] (Eq. 5-6).
     fmax : ndarray
         Maximum block force of each vehicle, 1000 * sum(F_dyn) [N].
-    ev_t, ev_lvl : ndarray
-        Command events: time [s] and level.
+    tau_emergency, tau_service, tau_release : ndarray
+        Time constants of each vehicle [s] (Eq. 7 for the emergency one).
+    ev_t, ev_lvl, ev_kind : ndarray
+        Command events: time [s], level and kind.
     n_ev : int
         Number of valid events.
-    tau_apply, tau_release : float
-        Time constants [s].
     """
     for i in range(fb.shape[0]):
         t = t0
         f = fb[i]
         while nxt[i] < n_ev and ev_t[nxt[i]] + delay[i] <= t1:
             te = max(ev_t[nxt[i]] + delay[i], t)
-            f = _relax(f, lvl[i] * fmax[i], te - t, tau_apply, tau_release)
+            ta = tau_emergency[i] if lkind[i] == 0 else tau_service[i]
+            f = _relax(f, lvl[i] * fmax[i], te - t, ta, tau_release[i])
             t = te
             lvl[i] = ev_lvl[nxt[i]]
+            lkind[i] = ev_kind[nxt[i]]
             nxt[i] += 1
-        fb[i] = _relax(f, lvl[i] * fmax[i], t1 - t, tau_apply, tau_release)
+        ta = tau_emergency[i] if lkind[i] == 0 else tau_service[i]
+        fb[i] = _relax(f, lvl[i] * fmax[i], t1 - t, ta, tau_release[i])
 
 
 @jit
-def _retarding(i, speed, mass, axles, kind, blocks, arrangement, mu_disc, fb, resist):
-    """Brake force, running resistance (magnitudes, N) and d(total)/d(speed) of vehicle i."""
+def advance_traction(h, cmd, v, ftr, fmax, pmax, db_fmax, db_pmax, rate, tau, fade):
+    """Advance the applied traction/dynamic-brake force of powered vehicles (in place).
+
+    The demanded force is ``cmd * min(F_max, P/|v|)`` (traction, forward) or, for cmd < 0,
+    ``cmd * min(F_db, P_db/|v|)`` against the motion, fading linearly to zero below ``fade``.
+    The applied force follows it with a first-order lag and a rate limit.
+
+    Parameters
+    ----------
+    h : float
+        Step [s].
+    cmd : float
+        Demand, -1 (full dynamic brake) to 1 (full traction).
+    v : ndarray
+        Speeds [m/s].
+    ftr : ndarray
+        Applied force, forward positive [N]; updated.
+    fmax, pmax, db_fmax, db_pmax : ndarray
+        Traction and dynamic-brake limits [N], [W] (0 for unpowered vehicles).
+    rate, tau, fade : ndarray
+        Rate limit [N/s], lag [s], dynamic-brake fade speed [m/s].
+    """
+    for i in range(ftr.shape[0]):
+        if fmax[i] <= 0.0 and db_fmax[i] <= 0.0:
+            continue
+        spd = abs(v[i])
+        if cmd >= 0.0:
+            avail = fmax[i] if spd * fmax[i] <= pmax[i] else pmax[i] / spd
+            target = cmd * avail
+        else:
+            avail = db_fmax[i] if spd * db_fmax[i] <= db_pmax[i] else db_pmax[i] / spd
+            if spd < fade[i]:
+                avail *= spd / fade[i]
+            target = cmd * avail * (1.0 if v[i] >= 0.0 else -1.0)
+        lagged = target + (ftr[i] - target) * math.exp(-h / tau[i])
+        dmax = rate[i] * h
+        change = min(max(lagged - ftr[i], -dmax), dmax)
+        ftr[i] += change
+
+
+@jit
+def track_forces(x, offset, start, mass, tk_s, tk_grad, tk_rc, fgrade, rcurve):
+    """Gradient force and curve resistance of each vehicle at its own chainage (in place).
+
+    Parameters
+    ----------
+    x : ndarray
+        Displacements [m].
+    offset : ndarray
+        Distance of each vehicle's centre behind the head's front [m].
+    start : float
+        Chainage of the head's front at t = 0 [m].
+    mass : ndarray
+        [kg].
+    tk_s, tk_grad, tk_rc : ndarray
+        Section starts [m], gradients [per mille, uphill positive], curve resistance [N/kN].
+    fgrade : ndarray
+        Out: gravity component along the track, forward positive [N].
+    rcurve : ndarray
+        Out: curve resistance magnitude [N].
+    """
+    ns = tk_s.shape[0]
+    for i in range(x.shape[0]):
+        ch = start + x[i] - offset[i]
+        k = 0
+        if ch >= tk_s[ns - 1]:
+            k = ns - 1
+        elif ch > tk_s[0]:
+            lo, hi = 0, ns - 1
+            while hi - lo > 1:
+                mid = (lo + hi) // 2
+                if tk_s[mid] <= ch:
+                    lo = mid
+                else:
+                    hi = mid
+            k = lo
+        weight_kN = mass[i] * 9.81 / 1000.0
+        fgrade[i] = -weight_kN * tk_grad[k]
+        rcurve[i] = weight_kN * tk_rc[k]
+
+
+@jit
+def _retarding(i, speed, mass, axles, kind, blocks, arrangement, mu_disc, fb, resist, rcurve):
+    """Brake force, running + curve resistance (magnitudes, N) and d(total)/d(speed)."""
     fr, dfr = resistance_N(mass[i], axles[i], speed)
-    fr *= resist
+    fr = (fr + rcurve[i]) * resist
     dfr *= resist
     if kind[i] == BRAKE_BLOCKS:
         mu, dmu = block_mu(speed, fb[i] / (1000.0 * blocks[i]), arrangement[i])
@@ -90,7 +181,10 @@ def run_steps(nsteps, h, t, hp,
               x, v, xp, vp, stuck, sgn,
               meff, mass, axles, kind, blocks, arrangement, mu_disc, fext, resist,
               xs, f_load, f_unload, v_th,
-              fb, lvl, nxt, delay, fmax, ev_t, ev_lvl, n_ev, tau_apply, tau_release,
+              fb, lvl, lkind, nxt, delay, fmax, tau_emergency, tau_service, tau_release,
+              ev_t, ev_lvl, ev_kind, n_ev,
+              tr_cmd, ftr, tr_fmax, tr_pmax, db_fmax, db_pmax, tr_rate, tr_tau, tr_fade,
+              offset, start, tk_s, tk_grad, tk_rc,
               fc, fbrake, peak_draft, t_draft, peak_buff, t_buff, lut_out, t_lut_out,
               stats, max_iter, rtol, watch_stop, v_stop):
     """Advance the train ``nsteps`` steps of ``h`` seconds (all arrays updated in place).
@@ -115,13 +209,18 @@ def run_steps(nsteps, h, t, hp,
     kind, blocks, arrangement, mu_disc : ndarray
         Brake description per vehicle.
     fext : ndarray
-        External force (traction, grade), forward positive [N].
+        Additional external force, forward positive [N].
     resist : float
         1 with running resistance, 0 without.
     xs, f_load, f_unload, v_th
         Coupler LUT [m], [N], [N] and Eq. 3 threshold [m/s].
-    fb, lvl, nxt, delay, fmax, ev_t, ev_lvl, n_ev, tau_apply, tau_release
+    fb, lvl, lkind, nxt, delay, fmax, tau_emergency, tau_service, tau_release, ev_t, ev_lvl,
+    ev_kind, n_ev
         Brake state and command events, see :func:`advance_brakes`.
+    tr_cmd, ftr, tr_fmax, tr_pmax, db_fmax, db_pmax, tr_rate, tr_tau, tr_fade
+        Traction demand and state, see :func:`advance_traction`.
+    offset, start, tk_s, tk_grad, tk_rc
+        Geometry and track profile, see :func:`track_forces`.
     fc, fbrake : ndarray
         Out: coupler forces [N] and brake (retarding) forces [N] at the end.
     peak_draft, t_draft, peak_buff, t_buff : ndarray
@@ -161,12 +260,22 @@ def run_steps(nsteps, h, t, hp,
     xhat = np.empty(n)
     vhat = np.empty(n)
     fair = np.empty(n)
+    stuck0 = np.empty(n, np.bool_)
+    fx = np.empty(n)
+    fgrade = np.empty(n)
+    rcurve = np.empty(n)
     xlo = xs[0]
     xhi = xs[xs.shape[0] - 1]
     for _step in range(nsteps):
         t1 = t + h
-        advance_brakes(t, t1, fb, lvl, nxt, delay, fmax, ev_t, ev_lvl, n_ev, tau_apply,
-                       tau_release)
+        advance_brakes(t, t1, fb, lvl, lkind, nxt, delay, fmax, tau_emergency, tau_service,
+                       tau_release, ev_t, ev_lvl, ev_kind, n_ev)
+        # traction and track forces vary slowly: taken at the start of the step
+        advance_traction(h, tr_cmd, v, ftr, tr_fmax, tr_pmax, db_fmax, db_pmax, tr_rate, tr_tau,
+                         tr_fade)
+        track_forces(x, offset, start, mass, tk_s, tk_grad, tk_rc, fgrade, rcurve)
+        for i in range(n):
+            fx[i] = fext[i] + ftr[i] + fgrade[i]
         if hp > 0.0:
             w = h / hp
             c1 = (1.0 + w) ** 2 / (1.0 + 2.0 * w)
@@ -176,6 +285,7 @@ def run_steps(nsteps, h, t, hp,
             w, c1, c2, beta = 0.0, 1.0, 0.0, 1.0
         bh = beta * h
         for i in range(n):
+            stuck0[i] = stuck[i]
             xhat[i] = c1 * x[i] - c2 * xp[i]
             vhat[i] = c1 * v[i] - c2 * vp[i]
             if stuck[i]:
@@ -194,14 +304,14 @@ def run_steps(nsteps, h, t, hp,
                 cj[j] = bh * kd + kr
             converged = True
             for i in range(n):
-                g0 = meff[i] * (u[i] - vhat[i]) / bh - fext[i]
+                g0 = meff[i] * (u[i] - vhat[i]) / bh - fx[i]
                 if i < nc:
                     g0 += fc[i]
                 if i > 0:
                     g0 -= fc[i - 1]
                 tol = rtol * mass[i] * 9.81
                 fa, fr, dr = _retarding(i, abs(u[i]), mass, axles, kind, blocks, arrangement,
-                                        mu_disc, fb, resist)
+                                        mu_disc, fb, resist, rcurve)
                 if stuck[i]:
                     if abs(g0) > fa + fr + tol:
                         # static friction cannot hold it: it starts sliding against g0
@@ -276,7 +386,14 @@ def run_steps(nsteps, h, t, hp,
             x[i] = xhat[i] + bh * u[i]
             v[i] = u[i]
             fbrake[i] = fair[i]
+        # a vehicle that stopped or started moving has a kink in its speed: the BDF2 history
+        # would extrapolate across it (and push a just-stopped vehicle backwards), so the next
+        # step restarts with backward Euler
         hp = h
+        for i in range(n):
+            if stuck[i] != stuck0[i]:
+                hp = 0.0
+                break
         t = t1
         for j in range(nc):
             f = fc[j]

@@ -312,6 +312,30 @@ def coupler_force(defl_m, rate_m_s, xs, f_load, f_unload, v_th):
     return force, dfd, dfr, seg, band
 
 
+@jit
+def curve_resistance_N_per_kN(radius_m):
+    """Curve resistance per unit weight, Roeckl's formula for standard gauge.
+
+    r = 650 / (R - 55) for R >= 300 m, 500 / (R - 30) for R < 300 m [N/kN]; 0 on straight
+    track (R = 0).
+
+    Parameters
+    ----------
+    radius_m : float
+        Curve radius [m] (0 = straight).
+
+    Returns
+    -------
+    float
+        [N/kN], numerically the same as per mille of equivalent gradient.
+    """
+    if radius_m <= 0.0:
+        return 0.0
+    if radius_m >= 300.0:
+        return 650.0 / (radius_m - 55.0)
+    return 500.0 / (radius_m - 30.0)
+
+
 def k_uic(train_length_m: float) -> float:
     """Length correction of the braked-weight percentage (Eq. 11).
 

@@ -6,8 +6,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .inputs import (BrakeParams, Consist, CouplerLUT, Scenario, load_brake_params,
-                     load_coupler_lut, load_scenarios)
+from .inputs import (BrakeParams, CommandScript, Consist, CouplerLUT, Scenario, Track,
+                     load_brake_params, load_coupler_lut, load_scenarios)
 from .simulator import Commands, SimulationError, Simulator
 
 
@@ -47,7 +47,8 @@ class StopResult:
 
 
 def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | None = None,
-                   lut: CouplerLUT | None = None, *, step_s: float = 0.01,
+                   lut: CouplerLUT | None = None, track: Track | None = None, *,
+                   step_s: float = 0.01,
                    chunk_s: float = 1.0, max_time_s: float = 600.0,
                    on_chunk=None) -> StopResult:
     """Apply the emergency brake at t = 0 and integrate until the train stands still.
@@ -59,6 +60,8 @@ def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | Non
         Initial speed [km/h].
     params : BrakeParams, optional
     lut : CouplerLUT, optional
+    track : Track, optional
+        Track profile (default: level straight track).
     step_s : float, optional
         Integration step [s].
     chunk_s : float, optional
@@ -79,7 +82,7 @@ def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | Non
     """
     params = params or load_brake_params()
     lut = lut or load_coupler_lut()
-    sim = Simulator(consist, speed_kmh, params, lut, step_s=step_s)
+    sim = Simulator(consist, speed_kmh, params, lut, track, step_s=step_s)
     start = time.perf_counter()
     snap = sim.advance(chunk_s, Commands(emergency=True))
     if on_chunk:
@@ -92,6 +95,52 @@ def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | Non
             on_chunk(snap)
     wall = time.perf_counter() - start
     return summarize(sim, wall)
+
+
+def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
+                 params: BrakeParams | None = None, lut: CouplerLUT | None = None,
+                 track: Track | None = None, *, step_s: float = 0.01, chunk_s: float = 0.1,
+                 max_time_s: float = 3600.0, on_chunk=None) -> Simulator:
+    """Run a train under a timed command script.
+
+    The inputs change at chunk boundaries (every ``chunk_s``), as they would when a controller
+    drives the ROS node at that rate.
+
+    Parameters
+    ----------
+    consist : Consist
+    speed_kmh : float
+        Initial speed [km/h].
+    script : CommandScript
+    params, lut, track : optional
+        Model inputs (defaults: paper parameters, shipped table, level track).
+    step_s, chunk_s : float, optional
+        Integration step and command-update interval [s].
+    max_time_s : float, optional
+        Upper bound when the script has no duration and the train does not stop [s].
+    on_chunk : callable, optional
+        Called with each :class:`~ltd_brake_ros.simulator.Snapshot`.
+
+    Returns
+    -------
+    Simulator
+        The simulator at the end of the run (its counters, peaks and events describe it).
+    """
+    sim = Simulator(consist, speed_kmh, params or load_brake_params(), lut or load_coupler_lut(),
+                    track, step_s=step_s)
+    end = script.duration_s if script.duration_s is not None else max_time_s
+    state: dict = {}
+    k = 0
+    while sim.time_s < end - 1e-9:
+        while k < len(script.steps) and script.steps[k][0] <= sim.time_s + 1e-9:
+            state.update(script.steps[k][1])
+            k += 1
+        snap = sim.advance(min(chunk_s, end - sim.time_s), Commands(**state))
+        if on_chunk:
+            on_chunk(snap)
+        if script.duration_s is None and sim.stop_time_s is not None:
+            break
+    return sim
 
 
 def summarize(sim: Simulator, wall_s: float) -> StopResult:

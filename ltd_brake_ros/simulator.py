@@ -25,9 +25,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import kernel
-from .inputs import BlockBrake, BrakeParams, Consist, CouplerLUT, DiscBrake, InputError
+from .inputs import BlockBrake, BrakeParams, Consist, CouplerLUT, DiscBrake, InputError, Track
 from .physics import (ARR_BG, ARR_BGU, BRAKE_BLOCKS, BRAKE_DISC, BRAKE_NONE, KMH_PER_MS,
-                      sum_block_force_kN, train_braked_weight_percent)
+                      curve_resistance_N_per_kN, sum_block_force_kN, train_braked_weight_percent)
+
+LN20 = math.log(20.0)
 
 
 class SimulationError(RuntimeError):
@@ -43,9 +45,30 @@ class Commands:
     emergency : bool
         Emergency brake applied. A change from False to True starts the application at the
         start of the chunk (t_app counts from there); True to False releases.
+    brake_demand : float
+        Service brake demand, 0 (released) to 1 (full service force = the emergency maximum
+        block force). Overridden by ``emergency``. Not validated against measurements.
+    traction : float
+        Traction (0 to 1) or dynamic-brake (-1 to 0) demand, as a fraction of the powered
+        vehicles' available effort.
+
+    Raises
+    ------
+    ValueError
+        A value is not finite or out of range (the message names the field).
     """
 
     emergency: bool = False
+    brake_demand: float = 0.0
+    traction: float = 0.0
+
+    def __post_init__(self):
+        for name, lo, hi in (("brake_demand", 0.0, 1.0), ("traction", -1.0, 1.0)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"{name} must be a number, got {value!r}")
+            if not (math.isfinite(value) and lo <= value <= hi):
+                raise ValueError(f"{name} must be between {lo:g} and {hi:g}, got {value}")
 
 
 @dataclass(frozen=True)
@@ -93,6 +116,8 @@ class Snapshot:
         Speed of each vehicle, forward positive [m/s].
     brake_force_N : ndarray
         Air-brake retarding force of each vehicle, positive [N].
+    traction_force_N : ndarray
+        Traction (positive) or dynamic-brake (negative) force of each vehicle [N].
     block_force_N : ndarray
         Total force on the brake blocks/pads of each vehicle, F_B,tot [N].
     coupler_force_N : ndarray
@@ -107,6 +132,7 @@ class Snapshot:
     position_m: np.ndarray
     speed_m_s: np.ndarray
     brake_force_N: np.ndarray
+    traction_force_N: np.ndarray
     block_force_N: np.ndarray
     coupler_force_N: np.ndarray
     events: tuple = ()
@@ -125,7 +151,9 @@ class Simulator:
     params : BrakeParams, optional
         Brake-model parameters (default: Table 3 and the paper's K0).
     lut : CouplerLUT
-        Coupler characteristic.
+        Coupler characteristic (default: the shipped buffer-hook table).
+    track : Track, optional
+        Track profile (default: level straight track).
     step_s : float, optional
         Largest integration step [s]; chunks are split into equal steps no longer than this.
     resistance : bool, optional
@@ -143,7 +171,8 @@ class Simulator:
     """
 
     def __init__(self, consist: Consist, speed_kmh: float, params: BrakeParams | None = None,
-                 lut: CouplerLUT | None = None, *, step_s: float = 0.01,
+                 lut: CouplerLUT | None = None, track: Track | None = None, *,
+                 step_s: float = 0.01,
                  resistance: bool = True, brakes: bool = True, max_newton_iter: int = 40,
                  newton_rtol: float = 1e-9, standstill_m_s: float = 1e-3):
         if lut is None:
@@ -156,6 +185,7 @@ class Simulator:
         if not (math.isfinite(step_s) and 1e-5 <= step_s <= 0.5):
             raise InputError("step_s", "", f"must be between 1e-5 and 0.5 s, got {step_s}")
         self.consist, self.params, self.lut = consist, params, lut
+        self.track = track or Track()
         self.speed_kmh = float(speed_kmh)
         self.step_s = float(step_s)
         self.max_newton_iter = int(max_newton_iter)
@@ -182,7 +212,7 @@ class Simulator:
                 self._kind[i] = BRAKE_BLOCKS
                 self._blocks[i] = b.blocks
                 self._arr[i] = ARR_BGU if b.arrangement == "Bgu" else ARR_BG
-                s = sum_block_force_kN(b.braked_weight_t, float(b.blocks), params.k0,
+                s = sum_block_force_kN(v.braked_weight_t, float(b.blocks), params.k0,
                                        int(self._arr[i]))
                 if not math.isfinite(s):
                     raise InputError(consist.source, f"vehicles[{i}].brake",
@@ -192,7 +222,7 @@ class Simulator:
                 self._kind[i] = BRAKE_DISC
                 self._mu_disc[i] = b.mu_eff if b.mu_eff is not None else params.mu_eff
                 k = b.k if b.k is not None else params.k_loco
-                self.max_block_force_N[i] = 1000.0 * b.braked_weight_t * 9.81 / k
+                self.max_block_force_N[i] = 1000.0 * v.braked_weight_t * 9.81 / k
             else:
                 self._kind[i] = BRAKE_NONE
         # vehicle centres behind the head's front [m]; Eq. 6 delay from the head's centre
@@ -201,6 +231,24 @@ class Simulator:
         self.brake_delay_s = params.t_app_s + (self._centre_offset_m - self._centre_offset_m[0]) \
             / params.v_air_m_s
         self._fmax = self.max_block_force_N if self._brakes else np.zeros(n)
+        # brake position: G fills (and releases) slower; service applications scale alike
+        in_g = np.array([v.brake_position == "G" for v in vs])
+        fill = np.where(in_g, params.t_fill_G_s, params.t_fill_s)
+        self._tau_emergency = fill / LN20
+        self._tau_service = params.t_service_fill_s * fill / params.t_fill_s / LN20
+        self._tau_release = np.where(in_g, params.t_release_G_s, params.t_release_s) / LN20
+        # traction and dynamic brake of powered vehicles (zeros elsewhere)
+        tr = [v.traction for v in vs]
+        self._tr = {name: np.array([getattr(t, name) if t else 0.0 for t in tr])
+                    for name in ("max_force_N", "max_power_W", "brake_max_force_N",
+                                 "brake_max_power_W", "rate_limit_N_s", "time_constant_s",
+                                 "fade_speed_m_s")}
+        self._tr["time_constant_s"][self._tr["time_constant_s"] <= 0] = 1.0
+        self._tr["fade_speed_m_s"][self._tr["fade_speed_m_s"] <= 0] = 1.0
+        tk = self.track
+        self._tk_s = np.asarray(tk.chainage_m, float)
+        self._tk_grad = np.asarray(tk.gradient_permille, float)
+        self._tk_rc = np.array([curve_resistance_N_per_kN(r) for r in tk.radius_m])
         xs = np.asarray(lut.deflection_m, float)
         self._xs, self._fl, self._fu = xs, np.asarray(lut.loading_N, float), np.asarray(
             lut.unloading_N, float)
@@ -228,10 +276,15 @@ class Simulator:
         self._sgn = np.where(self._v > 0.0, 1.0, 0.0)
         self._fb = np.zeros(n)
         self._lvl = np.zeros(n)
+        self._lkind = np.zeros(n, np.int64)
         self._nxt = np.zeros(n, np.int64)
         self._ev_t = np.zeros(8)
         self._ev_lvl = np.zeros(8)
+        self._ev_kind = np.zeros(8, np.int64)
         self._n_ev = 0
+        self._level = (0.0, 0)  # brake level and kind last commanded
+        self._ftr = np.zeros(n)
+        self._traction_cmd = 0.0
         self._fc = np.zeros(max(n - 1, 1))
         self._fbrake = np.zeros(n)
         nc = max(n - 1, 1)
@@ -315,40 +368,50 @@ class Simulator:
         Snapshot
         """
         n = self.n
-        return Snapshot(self.time_s, self._x - self._centre_offset_m, self._v.copy(),
-                        self._fbrake.copy() if self._brakes else np.zeros(n),
-                        self._fb.copy(), self._fc[: n - 1].copy(), tuple(events), self.stopped)
+        return Snapshot(self.time_s, self.track.start_chainage_m + self._x - self._centre_offset_m,
+                        self._v.copy(), self._fbrake.copy() if self._brakes else np.zeros(n),
+                        self._ftr.copy(), self._fb.copy(), self._fc[: n - 1].copy(),
+                        tuple(events), self.stopped)
 
     # ------------------------------------------------------------------ integration
 
-    def _add_event(self, level: float) -> None:
+    def _add_event(self, level: float, kind: int) -> None:
         # drop events every vehicle has already received
         done = int(self._nxt.min())
         if done:
-            keep = slice(done, self._n_ev)
-            self._ev_t[: self._n_ev - done] = self._ev_t[keep].copy()
-            self._ev_lvl[: self._n_ev - done] = self._ev_lvl[keep].copy()
-            self._n_ev -= done
+            m = self._n_ev - done
+            self._ev_t[:m] = self._ev_t[done:self._n_ev].copy()
+            self._ev_lvl[:m] = self._ev_lvl[done:self._n_ev].copy()
+            self._ev_kind[:m] = self._ev_kind[done:self._n_ev].copy()
+            self._n_ev = m
             self._nxt -= done
         if self._n_ev == self._ev_t.size:
             self._ev_t = np.concatenate((self._ev_t, np.zeros(self._ev_t.size)))
             self._ev_lvl = np.concatenate((self._ev_lvl, np.zeros(self._ev_lvl.size)))
+            self._ev_kind = np.concatenate((self._ev_kind, np.zeros(self._ev_kind.size, np.int64)))
         self._ev_t[self._n_ev] = self.time_s
         self._ev_lvl[self._n_ev] = level
+        self._ev_kind[self._n_ev] = kind
         self._n_ev += 1
 
     def _apply_commands(self, commands: Commands, events: list) -> None:
+        if (commands.emergency or commands.brake_demand > 0.0) and self.command_time_s is None:
+            # the stopping distance counts from the brake command that leads to the stop
+            self.command_time_s = self.time_s
+            self._x_cmd = float(self._x[0])
         if commands.emergency and not self._emergency:
             self._emergency = True
-            self._add_event(1.0)
-            if self.command_time_s is None:
-                self.command_time_s = self.time_s
-                self._x_cmd = float(self._x[0])
             events.append(Event(self.time_s, "brake_applied"))
         elif not commands.emergency and self._emergency:
             self._emergency = False
-            self._add_event(0.0)
             events.append(Event(self.time_s, "brake_released"))
+        level = (1.0, 0) if self._emergency else (float(commands.brake_demand), 1)
+        if level[0] == 0.0 and self.stop_time_s is None:
+            self.command_time_s = None  # released before standstill: a new stop counts anew
+        if level != self._level:
+            self._level = level
+            self._add_event(*level)
+        self._traction_cmd = float(commands.traction)
 
     def advance(self, duration_s: float, commands: Commands | None = None) -> Snapshot:
         """Integrate one chunk of simulated time.
@@ -380,6 +443,7 @@ class Simulator:
         nsteps = max(1, math.ceil(duration_s / self.step_s - 1e-9))
         h = duration_s / nsteps
         remaining = nsteps
+        tr = self._tr
         while remaining:
             watch = self.stop_time_s is None and self.command_time_s is not None
             code, t, hp, done = kernel.run_steps(
@@ -387,8 +451,14 @@ class Simulator:
                 self._stuck, self._sgn, self._meff, self.mass_kg, self._axles, self._kind,
                 self._blocks, self._arr, self._mu_disc, self.fext_N, self._resist,
                 self._xs, self._fl, self._fu, self.lut.v_th_m_s,
-                self._fb, self._lvl, self._nxt, self.brake_delay_s, self._fmax, self._ev_t,
-                self._ev_lvl, self._n_ev, self.params.tau_apply_s, self.params.tau_release_s,
+                self._fb, self._lvl, self._lkind, self._nxt, self.brake_delay_s, self._fmax,
+                self._tau_emergency, self._tau_service, self._tau_release,
+                self._ev_t, self._ev_lvl, self._ev_kind, self._n_ev,
+                self._traction_cmd, self._ftr, tr["max_force_N"], tr["max_power_W"],
+                tr["brake_max_force_N"], tr["brake_max_power_W"], tr["rate_limit_N_s"],
+                tr["time_constant_s"], tr["fade_speed_m_s"],
+                self._centre_offset_m, self.track.start_chainage_m, self._tk_s, self._tk_grad,
+                self._tk_rc,
                 self._fc, self._fbrake, self._peak_draft, self._t_draft, self._peak_buff,
                 self._t_buff, self._lut_out, self._t_lut_out, self._stats,
                 self.max_newton_iter, self.newton_rtol, watch, self.standstill_m_s)
