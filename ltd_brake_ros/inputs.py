@@ -131,6 +131,8 @@ class _Fields:
     """Typed access to a mapping, raising InputError with the field path."""
 
     def __init__(self, data: Any, source: str, path: str = ""):
+        if data is None and not path:
+            raise InputError(source, "", "is empty")
         if not isinstance(data, Mapping):
             raise InputError(source, path, f"must be a mapping, got {_kind(data)}")
         self.data, self.source, self.path = data, source, path
