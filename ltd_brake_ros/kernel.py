@@ -2,13 +2,18 @@
 
 Each step eliminates the positions (x_{n+1} = xhat + beta*h*u), leaving a nonlinear system in the
 new speeds u whose Jacobian is tridiagonal and symmetric positive definite. It is solved by
-Newton's method with three safeguards:
+Newton's method with these safeguards:
 
-* standstill is exact, not regularised: a vehicle whose speed would change sign inside a step
-  sticks at zero, and the brake and running resistance then act as static friction that holds
-  it until the other forces exceed them (no creeping, no chattering);
+* brake and running resistance oppose the motion with their full value outside a narrow
+  standstill band |v| <= v_stick and grow linearly inside it, so that they hold a stopped
+  vehicle against any smaller force (it creeps at most at v_stick times the force ratio);
 * a Newton update that would carry a coupler's deflection speed across the whole Eq. 3 band
-  |rate| <= v_th is shortened so that it lands inside the band (plain Newton 2-cycles there);
+  |rate| <= v_th is shortened so that it lands inside the band, and one that would carry a
+  vehicle's speed across its standstill band puts that vehicle at rest (plain Newton
+  2-cycles on both bands);
+* after a few iterations without convergence (rare: several vehicles and couplers crossing
+  bands together), each update is shortened by an exact line search on the step's convex
+  potential, which converges from anywhere;
 * a step is accepted only when every residual is below the tolerance; otherwise the kernel
   returns a failure code and the caller raises.
 
@@ -176,9 +181,93 @@ def _retarding(i, speed, mass, axles, kind, blocks, arrangement, mu_disc, fb, re
     return 0.0, fr, dfr
 
 
+#: Newton iterations with the cheap safeguards before the line search takes over.
+FAST_ITERATIONS = 4
+
+
+@jit
+def _slope(step, u, du, ut, gt, xhat, vhat, bh, fx, meff, mass, axles, kind, blocks,
+           arrangement, mu_disc, fb, resist, rcurve, xs, f_load, f_unload, v_th, v_stick, rtol,
+           dgt, cjt, fct, fat):
+    """Directional derivative g(u + step*du) . du of the step's potential."""
+    for i in range(u.shape[0]):
+        ut[i] = u[i] + step * du[i]
+    _residual(ut, xhat, vhat, bh, fx, meff, mass, axles, kind, blocks, arrangement, mu_disc, fb,
+              resist, rcurve, xs, f_load, f_unload, v_th, v_stick, rtol, gt, dgt, cjt, fct, fat)
+    acc = 0.0
+    for i in range(u.shape[0]):
+        acc += gt[i] * du[i]
+    return acc
+
+
+@jit
+def _line_search(u, du, ut, gt, xhat, vhat, bh, fx, meff, mass, axles, kind, blocks,
+                 arrangement, mu_disc, fb, resist, rcurve, xs, f_load, f_unload, v_th, v_stick,
+                 rtol, dgt, cjt, fct, fat):
+    """Step length minimising the step's convex potential along du (root of its slope)."""
+    if _slope(1.0, u, du, ut, gt, xhat, vhat, bh, fx, meff, mass, axles, kind, blocks,
+              arrangement, mu_disc, fb, resist, rcurve, xs, f_load, f_unload, v_th, v_stick,
+              rtol, dgt, cjt, fct, fat) <= 0.0:
+        return 1.0
+    lo, hi = 0.0, 1.0
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        if _slope(mid, u, du, ut, gt, xhat, vhat, bh, fx, meff, mass, axles, kind, blocks,
+                  arrangement, mu_disc, fb, resist, rcurve, xs, f_load, f_unload, v_th, v_stick,
+                  rtol, dgt, cjt, fct, fat) > 0.0:
+            hi = mid
+        else:
+            lo = mid
+    return hi if lo == 0.0 else lo
+
+
+@jit
+def _residual(u, xhat, vhat, bh, fx, meff, mass, axles, kind, blocks, arrangement, mu_disc, fb,
+              resist, rcurve, xs, f_load, f_unload, v_th, v_stick, rtol, g, diag, cj, fc, fair):
+    """Residual g(u) of the implicit step and the pieces of its Jacobian (in place).
+
+    g_i = rho_i M_i (u_i - vhat_i) / (beta h) - (coupler, external and retarding forces on i).
+    ``diag`` receives the vehicle terms of the Jacobian's diagonal and ``cj`` each coupler's
+    d(force)/d(rate); returns True when every |g_i| is within the tolerance.
+    """
+    n = u.shape[0]
+    nc = n - 1
+    for j in range(nc):
+        rate = u[j] - u[j + 1]
+        d = xhat[j] - xhat[j + 1] + bh * rate
+        f, kd, kr, _seg, _band = coupler_force(d, rate, xs, f_load, f_unload, v_th)
+        fc[j] = f
+        cj[j] = bh * kd + kr
+    converged = True
+    for i in range(n):
+        g0 = meff[i] * (u[i] - vhat[i]) / bh - fx[i]
+        if i < nc:
+            g0 += fc[i]
+        if i > 0:
+            g0 -= fc[i - 1]
+        spd = abs(u[i])
+        fa, fr, dr = _retarding(i, spd, mass, axles, kind, blocks, arrangement, mu_disc, fb,
+                                resist, rcurve)
+        total = fa + fr
+        if spd > v_stick:
+            sg = 1.0 if u[i] > 0.0 else -1.0
+            g[i] = g0 + sg * total
+            diag[i] = meff[i] / bh + dr
+            fair[i] = fa
+        else:
+            # standstill band: friction grows linearly up to its full value at |u| = v_stick
+            # and holds the vehicle against any smaller force
+            g[i] = g0 + total * u[i] / v_stick
+            diag[i] = meff[i] / bh + (total + dr * spd) / v_stick
+            fair[i] = fa * spd / v_stick
+        if abs(g[i]) > rtol * mass[i] * 9.81:
+            converged = False
+    return converged
+
+
 @jit
 def run_steps(nsteps, h, t, hp,
-              x, v, xp, vp, stuck, sgn,
+              x, v, xp, vp, stuck,
               meff, mass, axles, kind, blocks, arrangement, mu_disc, fext, resist,
               xs, f_load, f_unload, v_th,
               fb, lvl, lkind, nxt, delay, fmax, tau_emergency, tau_service, tau_release,
@@ -186,7 +275,7 @@ def run_steps(nsteps, h, t, hp,
               tr_cmd, ftr, tr_fmax, tr_pmax, db_fmax, db_pmax, tr_rate, tr_tau, tr_fade,
               offset, start, tk_s, tk_grad, tk_rc,
               fc, fbrake, peak_draft, t_draft, peak_buff, t_buff, lut_out, t_lut_out,
-              stats, max_iter, rtol, watch_stop, v_stop):
+              stats, max_iter, rtol, watch_stop, v_stop, v_stick):
     """Advance the train ``nsteps`` steps of ``h`` seconds (all arrays updated in place).
 
     Parameters
@@ -201,9 +290,7 @@ def run_steps(nsteps, h, t, hp,
     x, v, xp, vp : ndarray
         Displacements [m] and speeds [m/s] now and one step back.
     stuck : ndarray of bool
-        Vehicles held at standstill by static friction.
-    sgn : ndarray
-        Direction of motion (+1/-1) of sliding vehicles.
+        Out: vehicles inside the standstill band |v| <= v_stick.
     meff, mass, axles : ndarray
         rho*M [kg], M [kg], axle count.
     kind, blocks, arrangement, mu_disc : ndarray
@@ -228,7 +315,8 @@ def run_steps(nsteps, h, t, hp,
     lut_out, t_lut_out : ndarray
         Largest excursion beyond the LUT per coupler [m] and the first time out (-1 never).
     stats : ndarray of int
-        [steps, newton iterations, max iterations in one step, band cut-backs, releases].
+        [steps, Newton iterations, most iterations in one step, coupler-band cut-backs,
+        standstill-band projections, line searches].
     max_iter : int
         Newton iterations allowed per step.
     rtol : float
@@ -237,6 +325,8 @@ def run_steps(nsteps, h, t, hp,
         Return ``STOPPED`` right after the first step that leaves every vehicle at standstill.
     v_stop : float
         Speed below which a vehicle counts as standing for ``watch_stop`` [m/s].
+    v_stick : float
+        Half-width of the standstill band of brake and running resistance [m/s].
 
     Returns
     -------
@@ -261,6 +351,12 @@ def run_steps(nsteps, h, t, hp,
     vhat = np.empty(n)
     fair = np.empty(n)
     stuck0 = np.empty(n, np.bool_)
+    ut = np.empty(n)
+    gt = np.empty(n)
+    dgt = np.empty(n)
+    cjt = np.empty(max(nc, 1))
+    fct = np.empty(max(nc, 1))
+    fat = np.empty(n)
     fx = np.empty(n)
     fgrade = np.empty(n)
     rcurve = np.empty(n)
@@ -288,65 +384,25 @@ def run_steps(nsteps, h, t, hp,
             stuck0[i] = stuck[i]
             xhat[i] = c1 * x[i] - c2 * xp[i]
             vhat[i] = c1 * v[i] - c2 * vp[i]
-            if stuck[i]:
-                u[i] = 0.0
-            else:
-                guess = v[i] + w * (v[i] - vp[i])
-                u[i] = guess if guess * sgn[i] > 0.0 else v[i]
-        converged = False
+            u[i] = v[i] + w * (v[i] - vp[i])
+            if u[i] * v[i] <= 0.0:
+                u[i] = v[i]  # never extrapolate through standstill
         it = 0
         while True:
-            for j in range(nc):
-                rate = u[j] - u[j + 1]
-                d = xhat[j] - xhat[j + 1] + bh * rate
-                f, kd, kr, _seg, _band = coupler_force(d, rate, xs, f_load, f_unload, v_th)
-                fc[j] = f
-                cj[j] = bh * kd + kr
-            converged = True
-            for i in range(n):
-                g0 = meff[i] * (u[i] - vhat[i]) / bh - fx[i]
-                if i < nc:
-                    g0 += fc[i]
-                if i > 0:
-                    g0 -= fc[i - 1]
-                tol = rtol * mass[i] * 9.81
-                fa, fr, dr = _retarding(i, abs(u[i]), mass, axles, kind, blocks, arrangement,
-                                        mu_disc, fb, resist, rcurve)
-                if stuck[i]:
-                    if abs(g0) > fa + fr + tol:
-                        # static friction cannot hold it: it starts sliding against g0
-                        stuck[i] = False
-                        sgn[i] = -1.0 if g0 > 0.0 else 1.0
-                        stats[4] += 1
-                        converged = False
-                        g[i] = g0 + sgn[i] * (fa + fr)
-                        diag[i] = meff[i] / bh + dr
-                    else:
-                        fair[i] = 0.0 if fa + fr <= 0.0 else abs(g0) * fa / (fa + fr)
-                        g[i] = 0.0
-                        diag[i] = 1.0
-                else:
-                    fair[i] = fa
-                    g[i] = g0 + sgn[i] * (fa + fr)
-                    diag[i] = meff[i] / bh + dr
-                    if abs(g[i]) > tol:
-                        converged = False
+            converged = _residual(u, xhat, vhat, bh, fx, meff, mass, axles, kind, blocks,
+                                  arrangement, mu_disc, fb, resist, rcurve, xs, f_load,
+                                  f_unload, v_th, v_stick, rtol, g, diag, cj, fc, fair)
             if converged:
                 break
             if it >= max_iter:
                 stats[1] += it
                 return NEWTON_FAILED, t, hp, _step
             it += 1
-            # tridiagonal SPD system J du = -g; rows of stuck vehicles are identity rows
+            # tridiagonal symmetric positive definite system J du = -g
             for j in range(nc):
-                if stuck[j] or stuck[j + 1]:
-                    off[j] = 0.0
-                else:
-                    off[j] = -cj[j]
-                if not stuck[j]:
-                    diag[j] += cj[j]
-                if not stuck[j + 1]:
-                    diag[j + 1] += cj[j]
+                off[j] = -cj[j]
+                diag[j] += cj[j]
+                diag[j + 1] += cj[j]
             # Thomas algorithm (no pivoting needed: the matrix is SPD)
             for i in range(n):
                 du[i] = -g[i]
@@ -357,25 +413,37 @@ def run_steps(nsteps, h, t, hp,
             du[n - 1] /= diag[n - 1]
             for i in range(n - 2, -1, -1):
                 du[i] = (du[i] - off[i] * du[i + 1]) / diag[i]
-            # do not let a coupler jump across the whole hysteresis band in one update
-            alpha = 1.0
-            for j in range(nc):
-                r0 = u[j] - u[j + 1]
-                r1 = r0 + du[j] - du[j + 1]
-                if r0 * r1 < 0.0 and abs(r0) > v_th and abs(r1) > v_th:
-                    a = r0 / (r0 - r1)
-                    if a < alpha:
-                        alpha = a
-            if alpha < 1.0:
-                stats[3] += 1
-            for i in range(n):
-                if stuck[i]:
-                    continue
-                u[i] += alpha * du[i]
-                if u[i] * sgn[i] <= 0.0:
-                    # the speed would reverse inside the step: it stops here instead
-                    u[i] = 0.0
-                    stuck[i] = True
+            if it <= FAST_ITERATIONS:
+                # cheap safeguards, enough for almost every step: do not let a coupler jump
+                # across the whole hysteresis band, nor a vehicle across its standstill band
+                alpha = 1.0
+                for j in range(nc):
+                    r0 = u[j] - u[j + 1]
+                    r1 = r0 + du[j] - du[j + 1]
+                    if r0 * r1 < 0.0 and abs(r0) > v_th and abs(r1) > v_th:
+                        a = r0 / (r0 - r1)
+                        if a < alpha:
+                            alpha = a
+                if alpha < 1.0:
+                    stats[3] += 1
+                for i in range(n):
+                    u1 = u[i] + alpha * du[i]
+                    if u1 * u[i] < 0.0 and abs(u[i]) > v_stick and abs(u1) > v_stick:
+                        u1 = 0.0
+                        stats[4] += 1
+                    u[i] = u1
+            else:
+                # globally convergent fallback: g is the gradient of a convex potential and du
+                # a descent direction, so minimise along du exactly (the directional
+                # derivative is monotone along the line: find its root by bisection)
+                stats[5] += 1
+                alpha = _line_search(u, du, ut, gt, xhat, vhat, bh, fx, meff, mass, axles, kind,
+                                     blocks, arrangement, mu_disc, fb, resist, rcurve, xs,
+                                     f_load, f_unload, v_th, v_stick, rtol, dgt, cjt, fct, fat)
+                for i in range(n):
+                    u[i] += alpha * du[i]
+        for i in range(n):
+            stuck[i] = abs(u[i]) <= v_stick
         stats[0] += 1
         stats[1] += it
         if it > stats[2]:
@@ -386,9 +454,9 @@ def run_steps(nsteps, h, t, hp,
             x[i] = xhat[i] + bh * u[i]
             v[i] = u[i]
             fbrake[i] = fair[i]
-        # a vehicle that stopped or started moving has a kink in its speed: the BDF2 history
-        # would extrapolate across it (and push a just-stopped vehicle backwards), so the next
-        # step restarts with backward Euler
+        # a vehicle that entered or left the standstill band has a kink in its speed: the BDF2
+        # history would extrapolate across it (and push a just-stopped vehicle backwards), so
+        # the next step restarts with backward Euler
         hp = h
         for i in range(n):
             if stuck[i] != stuck0[i]:

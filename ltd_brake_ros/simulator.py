@@ -165,16 +165,19 @@ class Simulator:
     newton_rtol : float, optional
         Residual tolerance, relative to each vehicle's weight.
     standstill_m_s : float, optional
-        The train counts as stopped once every vehicle is slower than this [m/s]. Vehicles that
-        reach zero speed are held exactly by static friction; one pulled by a coupler that is
-        still inside the Eq. 3 band may creep at less than v_th while that coupler relaxes.
+        The train counts as stopped once every vehicle is slower than this [m/s].
+    stick_band_m_s : float, optional
+        Half-width of the standstill band [m/s]: brake and running resistance reach their full
+        value at this speed and hold a stopped vehicle against any smaller force; it creeps at
+        most at this speed times (force / holding force).
     """
 
     def __init__(self, consist: Consist, speed_kmh: float, params: BrakeParams | None = None,
                  lut: CouplerLUT | None = None, track: Track | None = None, *,
                  step_s: float = 0.01,
                  resistance: bool = True, brakes: bool = True, max_newton_iter: int = 40,
-                 newton_rtol: float = 1e-9, standstill_m_s: float = 1e-3):
+                 newton_rtol: float = 1e-9, standstill_m_s: float = 1e-3,
+                 stick_band_m_s: float = 1e-5):
         if lut is None:
             from .inputs import load_coupler_lut
 
@@ -191,6 +194,7 @@ class Simulator:
         self.max_newton_iter = int(max_newton_iter)
         self.newton_rtol = float(newton_rtol)
         self.standstill_m_s = float(standstill_m_s)
+        self.stick_band_m_s = float(stick_band_m_s)
         self._resist = 1.0 if resistance else 0.0
         self._brakes = bool(brakes)
         vs = consist.vehicles
@@ -273,7 +277,6 @@ class Simulator:
         self._xp = np.zeros(n)
         self._vp = np.full(n, v0)
         self._stuck = self._v == 0.0
-        self._sgn = np.where(self._v > 0.0, 1.0, 0.0)
         self._fb = np.zeros(n)
         self._lvl = np.zeros(n)
         self._lkind = np.zeros(n, np.int64)
@@ -294,7 +297,7 @@ class Simulator:
         self._t_buff = np.zeros(nc)
         self._lut_out = np.zeros(nc)
         self._t_lut_out = np.full(nc, -1.0)
-        self._stats = np.zeros(5, np.int64)
+        self._stats = np.zeros(6, np.int64)
         self._emergency = False
         self.command_time_s: float | None = None
         self._x_cmd = 0.0
@@ -448,7 +451,7 @@ class Simulator:
             watch = self.stop_time_s is None and self.command_time_s is not None
             code, t, hp, done = kernel.run_steps(
                 remaining, h, self.time_s, self._hp, self._x, self._v, self._xp, self._vp,
-                self._stuck, self._sgn, self._meff, self.mass_kg, self._axles, self._kind,
+                self._stuck, self._meff, self.mass_kg, self._axles, self._kind,
                 self._blocks, self._arr, self._mu_disc, self.fext_N, self._resist,
                 self._xs, self._fl, self._fu, self.lut.v_th_m_s,
                 self._fb, self._lvl, self._lkind, self._nxt, self.brake_delay_s, self._fmax,
@@ -461,7 +464,8 @@ class Simulator:
                 self._tk_rc,
                 self._fc, self._fbrake, self._peak_draft, self._t_draft, self._peak_buff,
                 self._t_buff, self._lut_out, self._t_lut_out, self._stats,
-                self.max_newton_iter, self.newton_rtol, watch, self.standstill_m_s)
+                self.max_newton_iter, self.newton_rtol, watch, self.standstill_m_s,
+                self.stick_band_m_s)
             self.time_s, self._hp = t, hp
             remaining -= done
             if code == kernel.NEWTON_FAILED:
