@@ -27,7 +27,8 @@ import math
 
 import numpy as np
 
-from .physics import (BRAKE_BLOCKS, BRAKE_DISC, block_mu, coupler_force, jit, resistance_N)
+from .physics import (BRAKE_BLOCKS, BRAKE_DISC, KMH_PER_MS, block_force_factor, coupler_force,
+                      jit, karwatzki_speed_factor, resistance_coefficients)
 
 #: Kernel return codes.
 OK, NEWTON_FAILED, STOPPED = 0, 1, 2
@@ -168,17 +169,19 @@ def track_forces(x, offset, start, mass, tk_s, tk_grad, tk_rc, fgrade, rcurve):
 
 
 @jit
-def _retarding(i, speed, mass, axles, kind, blocks, arrangement, mu_disc, fb, resist, rcurve):
-    """Brake force, running + curve resistance (magnitudes, N) and d(total)/d(speed)."""
-    fr, dfr = resistance_N(mass[i], axles[i], speed)
-    fr = (fr + rcurve[i]) * resist
-    dfr *= resist
+def _retarding(i, speed, res_a, kind, fa_scale, rcurve, resist):
+    """Brake force, running + curve resistance (magnitudes, N) and d(total)/d(speed).
+
+    ``res_a`` holds the Eq. 2 coefficients per vehicle; ``fa_scale`` the brake force per unit
+    of Karwatzki's speed factor (blocks) or the disc brake force, fixed within a step.
+    """
+    v_kmh = KMH_PER_MS * speed
+    fr = (res_a[i, 0] + (res_a[i, 1] + res_a[i, 2] * v_kmh) * v_kmh + rcurve[i]) * resist
+    dfr = (res_a[i, 1] + 2.0 * res_a[i, 2] * v_kmh) * KMH_PER_MS * resist
     if kind[i] == BRAKE_BLOCKS:
-        mu, dmu = block_mu(speed, fb[i] / (1000.0 * blocks[i]), arrangement[i])
-        return mu * fb[i], fr, dmu * fb[i] + dfr
-    if kind[i] == BRAKE_DISC:
-        return mu_disc[i] * fb[i], fr, dfr
-    return 0.0, fr, dfr
+        f, df = karwatzki_speed_factor(speed)
+        return f * fa_scale[i], fr, df * fa_scale[i] + dfr
+    return fa_scale[i], fr, dfr
 
 
 #: Newton iterations with the cheap safeguards before the line search takes over.
@@ -186,14 +189,13 @@ FAST_ITERATIONS = 4
 
 
 @jit
-def _slope(step, u, du, ut, gt, xhat, vhat, bh, fx, meff, mass, axles, kind, blocks,
-           arrangement, mu_disc, fb, resist, rcurve, xs, f_load, f_unload, v_th, v_stick, rtol,
-           dgt, cjt, fct, fat):
+def _slope(step, u, du, ut, gt, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale, resist,
+           rcurve, xs, f_load, f_unload, v_th, v_stick, dgt, cjt, fct, fat):
     """Directional derivative g(u + step*du) . du of the step's potential."""
     for i in range(u.shape[0]):
         ut[i] = u[i] + step * du[i]
-    _residual(ut, xhat, vhat, bh, fx, meff, mass, axles, kind, blocks, arrangement, mu_disc, fb,
-              resist, rcurve, xs, f_load, f_unload, v_th, v_stick, rtol, gt, dgt, cjt, fct, fat)
+    _residual(ut, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale, resist, rcurve, xs,
+              f_load, f_unload, v_th, v_stick, gt, dgt, cjt, fct, fat)
     acc = 0.0
     for i in range(u.shape[0]):
         acc += gt[i] * du[i]
@@ -201,29 +203,47 @@ def _slope(step, u, du, ut, gt, xhat, vhat, bh, fx, meff, mass, axles, kind, blo
 
 
 @jit
-def _line_search(u, du, ut, gt, xhat, vhat, bh, fx, meff, mass, axles, kind, blocks,
-                 arrangement, mu_disc, fb, resist, rcurve, xs, f_load, f_unload, v_th, v_stick,
-                 rtol, dgt, cjt, fct, fat):
-    """Step length minimising the step's convex potential along du (root of its slope)."""
-    if _slope(1.0, u, du, ut, gt, xhat, vhat, bh, fx, meff, mass, axles, kind, blocks,
-              arrangement, mu_disc, fb, resist, rcurve, xs, f_load, f_unload, v_th, v_stick,
-              rtol, dgt, cjt, fct, fat) <= 0.0:
+def _line_search(u, du, ut, gt, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale, resist,
+                 rcurve, xs, f_load, f_unload, v_th, v_stick, dgt, cjt, fct, fat):
+    """Step length minimising the step's convex potential along du (root of its slope).
+
+    Regula falsi (Illinois) on the slope, which is monotone along the line; a 1e-3 bracket is
+    plenty, the next Newton iteration corrects the rest.
+    """
+    fhi = _slope(1.0, u, du, ut, gt, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale,
+                 resist, rcurve, xs, f_load, f_unload, v_th, v_stick, dgt, cjt, fct, fat)
+    if fhi <= 0.0:
         return 1.0
+    flo = _slope(0.0, u, du, ut, gt, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale,
+                 resist, rcurve, xs, f_load, f_unload, v_th, v_stick, dgt, cjt, fct, fat)
     lo, hi = 0.0, 1.0
-    for _ in range(40):
-        mid = 0.5 * (lo + hi)
-        if _slope(mid, u, du, ut, gt, xhat, vhat, bh, fx, meff, mass, axles, kind, blocks,
-                  arrangement, mu_disc, fb, resist, rcurve, xs, f_load, f_unload, v_th, v_stick,
-                  rtol, dgt, cjt, fct, fat) > 0.0:
-            hi = mid
+    side = 0
+    for _ in range(30):
+        if hi - lo < 1e-3 * hi:
+            break
+        mid = (lo * fhi - hi * flo) / (fhi - flo)
+        if not (lo < mid < hi):
+            mid = 0.5 * (lo + hi)
+        fmid = _slope(mid, u, du, ut, gt, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale,
+                      resist, rcurve, xs, f_load, f_unload, v_th, v_stick, dgt, cjt, fct, fat)
+        if fmid == 0.0:
+            return mid
+        if fmid > 0.0:
+            hi, fhi = mid, fmid
+            if side == 1:
+                flo *= 0.5
+            side = 1
         else:
-            lo = mid
-    return hi if lo == 0.0 else lo
+            lo, flo = mid, fmid
+            if side == -1:
+                fhi *= 0.5
+            side = -1
+    return lo if lo > 0.0 else hi
 
 
 @jit
-def _residual(u, xhat, vhat, bh, fx, meff, mass, axles, kind, blocks, arrangement, mu_disc, fb,
-              resist, rcurve, xs, f_load, f_unload, v_th, v_stick, rtol, g, diag, cj, fc, fair):
+def _residual(u, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale, resist, rcurve, xs,
+              f_load, f_unload, v_th, v_stick, g, diag, cj, fc, fair):
     """Residual g(u) of the implicit step and the pieces of its Jacobian (in place).
 
     g_i = rho_i M_i (u_i - vhat_i) / (beta h) - (coupler, external and retarding forces on i).
@@ -246,8 +266,7 @@ def _residual(u, xhat, vhat, bh, fx, meff, mass, axles, kind, blocks, arrangemen
         if i > 0:
             g0 -= fc[i - 1]
         spd = abs(u[i])
-        fa, fr, dr = _retarding(i, spd, mass, axles, kind, blocks, arrangement, mu_disc, fb,
-                                resist, rcurve)
+        fa, fr, dr = _retarding(i, spd, res_a, kind, fa_scale, rcurve, resist)
         total = fa + fr
         if spd > v_stick:
             sg = 1.0 if u[i] > 0.0 else -1.0
@@ -260,9 +279,33 @@ def _residual(u, xhat, vhat, bh, fx, meff, mass, axles, kind, blocks, arrangemen
             g[i] = g0 + total * u[i] / v_stick
             diag[i] = meff[i] / bh + (total + dr * spd) / v_stick
             fair[i] = fa * spd / v_stick
-        if abs(g[i]) > rtol * mass[i] * 9.81:
+        if abs(g[i]) > tol[i]:
             converged = False
     return converged
+
+
+@jit
+def _solve_tridiagonal(dvec, cj, g, off, dwork, du):
+    """Solve J du = -g, J = diag(dvec) + sum over couplers of cj * (e_j - e_j+1)(e_j - e_j+1)^T.
+
+    J is tridiagonal, symmetric positive definite (an M-matrix): the Thomas algorithm needs no
+    pivoting. ``off`` and ``dwork`` are scratch arrays.
+    """
+    n = dvec.shape[0]
+    for i in range(n):
+        dwork[i] = dvec[i]
+        du[i] = -g[i]
+    for j in range(n - 1):
+        off[j] = -cj[j]
+        dwork[j] += cj[j]
+        dwork[j + 1] += cj[j]
+    for i in range(1, n):
+        m = off[i - 1] / dwork[i - 1]
+        dwork[i] -= m * off[i - 1]
+        du[i] -= m * du[i - 1]
+    du[n - 1] /= dwork[n - 1]
+    for i in range(n - 2, -1, -1):
+        du[i] = (du[i] - off[i] * du[i + 1]) / dwork[i]
 
 
 @jit
@@ -351,6 +394,16 @@ def run_steps(nsteps, h, t, hp,
     vhat = np.empty(n)
     fair = np.empty(n)
     stuck0 = np.empty(n, np.bool_)
+    dtmp = np.empty(n)
+    fa_scale = np.empty(n)
+    tol = np.empty(n)
+    res_a = np.empty((n, 3))
+    for i in range(n):
+        tol[i] = rtol * mass[i] * 9.81
+        a0, a1, a2 = resistance_coefficients(mass[i], axles[i])
+        res_a[i, 0] = a0
+        res_a[i, 1] = a1
+        res_a[i, 2] = a2
     ut = np.empty(n)
     gt = np.empty(n)
     dgt = np.empty(n)
@@ -372,6 +425,14 @@ def run_steps(nsteps, h, t, hp,
         track_forces(x, offset, start, mass, tk_s, tk_grad, tk_rc, fgrade, rcurve)
         for i in range(n):
             fx[i] = fext[i] + ftr[i] + fgrade[i]
+            if kind[i] == BRAKE_BLOCKS:
+                # Karwatzki's block-force factor is fixed within the step (Eq. 9)
+                fa_scale[i] = fb[i] * block_force_factor(fb[i] / (1000.0 * blocks[i]),
+                                                         arrangement[i])
+            elif kind[i] == BRAKE_DISC:
+                fa_scale[i] = mu_disc[i] * fb[i]
+            else:
+                fa_scale[i] = 0.0
         if hp > 0.0:
             w = h / hp
             c1 = (1.0 + w) ** 2 / (1.0 + 2.0 * w)
@@ -389,30 +450,33 @@ def run_steps(nsteps, h, t, hp,
                 u[i] = v[i]  # never extrapolate through standstill
         it = 0
         while True:
-            converged = _residual(u, xhat, vhat, bh, fx, meff, mass, axles, kind, blocks,
-                                  arrangement, mu_disc, fb, resist, rcurve, xs, f_load,
-                                  f_unload, v_th, v_stick, rtol, g, diag, cj, fc, fair)
+            converged = _residual(u, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale,
+                                  resist, rcurve, xs, f_load, f_unload, v_th, v_stick, g, diag,
+                                  cj, fc, fair)
             if converged:
                 break
             if it >= max_iter:
                 stats[1] += it
                 return NEWTON_FAILED, t, hp, _step
             it += 1
-            # tridiagonal symmetric positive definite system J du = -g
-            for j in range(nc):
-                off[j] = -cj[j]
-                diag[j] += cj[j]
-                diag[j + 1] += cj[j]
-            # Thomas algorithm (no pivoting needed: the matrix is SPD)
-            for i in range(n):
-                du[i] = -g[i]
-            for i in range(1, n):
-                m = off[i - 1] / diag[i - 1]
-                diag[i] -= m * off[i - 1]
-                du[i] -= m * du[i - 1]
-            du[n - 1] /= diag[n - 1]
-            for i in range(n - 2, -1, -1):
-                du[i] = (du[i] - off[i] * du[i + 1]) / diag[i]
+            _solve_tridiagonal(diag, cj, g, off, dtmp, du)
+            if it <= FAST_ITERATIONS:
+                # a coupler whose deflection speed would jump across its whole Eq. 3 band most
+                # likely ends inside it: solve again with that coupler on the band's line
+                again = False
+                for j in range(nc):
+                    r0 = u[j] - u[j + 1]
+                    r1 = r0 + du[j] - du[j + 1]
+                    if r0 * r1 < 0.0 and abs(r0) > v_th and abs(r1) > v_th:
+                        d = xhat[j] - xhat[j + 1] + bh * r0
+                        fm, kd, kr, _seg, _band = coupler_force(d, 0.0, xs, f_load, f_unload, v_th)
+                        shift = fm + kr * r0 - fc[j]  # band line at r0 minus actual force
+                        g[j] += shift
+                        g[j + 1] -= shift
+                        cj[j] = bh * kd + kr
+                        again = True
+                if again:
+                    _solve_tridiagonal(diag, cj, g, off, dtmp, du)
             if it <= FAST_ITERATIONS:
                 # cheap safeguards, enough for almost every step: do not let a coupler jump
                 # across the whole hysteresis band, nor a vehicle across its standstill band
@@ -437,9 +501,9 @@ def run_steps(nsteps, h, t, hp,
                 # a descent direction, so minimise along du exactly (the directional
                 # derivative is monotone along the line: find its root by bisection)
                 stats[5] += 1
-                alpha = _line_search(u, du, ut, gt, xhat, vhat, bh, fx, meff, mass, axles, kind,
-                                     blocks, arrangement, mu_disc, fb, resist, rcurve, xs,
-                                     f_load, f_unload, v_th, v_stick, rtol, dgt, cjt, fct, fat)
+                alpha = _line_search(u, du, ut, gt, xhat, vhat, bh, fx, meff, tol, res_a, kind,
+                                     fa_scale, resist, rcurve, xs, f_load, f_unload, v_th,
+                                     v_stick, dgt, cjt, fct, fat)
                 for i in range(n):
                     u[i] += alpha * du[i]
         for i in range(n):

@@ -44,8 +44,35 @@ ARR_BG, ARR_BGU = 0, 1
 
 
 @jit
+def resistance_coefficients(mass_kg, axles):
+    """Coefficients of Eq. 2 written as F = a0 + a1*V + a2*V^2 (V in km/h).
+
+    Parameters
+    ----------
+    mass_kg : float
+        Weight on rails [kg].
+    axles : float
+        Number of axles.
+
+    Returns
+    -------
+    a0 : float
+        [N].
+    a1 : float
+        [N/(km/h)].
+    a2 : float
+        [N/(km/h)^2].
+    """
+    q_ax = mass_kg / 1000.0 / axles
+    m_t = mass_kg / 1000.0
+    return m_t * (2.943 + 89.2 / q_ax), m_t * 0.0306, m_t * 0.122 / (q_ax * axles)
+
+
+@jit
 def resistance_N(mass_kg, axles, speed_m_s):
     """Running resistance, Eq. 2, and its derivative.
+
+    F = M/1000 * (2.943 + 89.2/Q_ax + 0.0306 V + 0.122 V^2 / (Q_ax N_ax)), Q_ax in t, V in km/h.
 
     Parameters
     ----------
@@ -63,12 +90,9 @@ def resistance_N(mass_kg, axles, speed_m_s):
     dforce_dspeed : float
         Derivative with respect to speed [N/(m/s)].
     """
-    q_ax = mass_kg / 1000.0 / axles
+    a0, a1, a2 = resistance_coefficients(mass_kg, axles)
     v_kmh = KMH_PER_MS * speed_m_s
-    m_t = mass_kg / 1000.0
-    force = m_t * (2.943 + 89.2 / q_ax + 0.0306 * v_kmh + 0.122 * v_kmh * v_kmh / (q_ax * axles))
-    dforce = m_t * (0.0306 + 0.244 * v_kmh / (q_ax * axles)) * KMH_PER_MS
-    return force, dforce
+    return a0 + (a1 + a2 * v_kmh) * v_kmh, (a1 + 2.0 * a2 * v_kmh) * KMH_PER_MS
 
 
 @jit
@@ -116,6 +140,26 @@ def karwatzki_mu(speed_kmh, block_force_kN):
 
 
 @jit
+def karwatzki_speed_factor(speed_m_s):
+    """Speed part of Karwatzki's law, 0.6 (V+100)/(5V+100), and its derivative.
+
+    Parameters
+    ----------
+    speed_m_s : float
+        Speed magnitude [m/s].
+
+    Returns
+    -------
+    factor : float
+    dfactor_dspeed : float
+        [1/(m/s)].
+    """
+    v = KMH_PER_MS * speed_m_s
+    den = 5.0 * v + 100.0
+    return 0.6 * (v + 100.0) / den, -240.0 / (den * den) * KMH_PER_MS
+
+
+@jit
 def block_mu(speed_m_s, block_force_kN, arrangement):
     """Cast-iron friction coefficient for a block arrangement, and d(mu)/d(speed).
 
@@ -134,12 +178,9 @@ def block_mu(speed_m_s, block_force_kN, arrangement):
     dmu_dspeed : float
         [1/(m/s)].
     """
-    v = KMH_PER_MS * speed_m_s
     phi = block_force_factor(block_force_kN, arrangement)
-    den = 5.0 * v + 100.0
-    mu = 0.6 * (v + 100.0) / den * phi
-    dmu = 0.6 * (-400.0) / (den * den) * phi * KMH_PER_MS
-    return mu, dmu
+    f, df = karwatzki_speed_factor(speed_m_s)
+    return f * phi, df * phi
 
 
 @jit

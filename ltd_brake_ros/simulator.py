@@ -175,7 +175,7 @@ class Simulator:
     def __init__(self, consist: Consist, speed_kmh: float, params: BrakeParams | None = None,
                  lut: CouplerLUT | None = None, track: Track | None = None, *,
                  step_s: float = 0.01,
-                 resistance: bool = True, brakes: bool = True, max_newton_iter: int = 40,
+                 resistance: bool = True, brakes: bool = True, max_newton_iter: int = 100,
                  newton_rtol: float = 1e-9, standstill_m_s: float = 1e-3,
                  stick_band_m_s: float = 1e-5):
         if lut is None:
