@@ -283,6 +283,12 @@ def build_parser() -> argparse.ArgumentParser:
     _add_model_options(p)
     p.add_argument("--json", action="store_true", help="print JSON instead of the table")
     p.set_defaults(func=cmd_validate)
+
+    from .calibrate import add_parser as add_calibrate_parser
+    from .report import add_parsers as add_report_parsers
+
+    add_calibrate_parser(sub)
+    add_report_parsers(sub)
     return parser
 
 

@@ -1,0 +1,178 @@
+"""Calibration of the brake parameters: identifiability, the uic preset, the command line."""
+import argparse
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from ltd_brake_ros import calibrate as cal_mod
+from ltd_brake_ros import cli
+from ltd_brake_ros.inputs import (InputError, load_brake_params, load_coupler_lut,
+                                  load_scenarios)
+from ltd_brake_ros.runs import emergency_stop, validate
+
+UIC_TOL_PERCENT = 2.0
+FIT = ["t_app", "v_air", "t_fill", "k0"]
+
+
+# --------------------------------------------------------------------------- identifiability
+
+
+@pytest.fixture(scope="module")
+def synthetic():
+    """Distances made with known parameters, fitted from a start 30 % away from them.
+
+    Short and long trains (v_air) at 100 and 50 km/h (the dead time t_app + t_fill against
+    the braking force k0); a coarse step keeps it cheap, and targets and fit use the same one.
+    """
+    catalogue = load_scenarios()
+    numbers = [1, 6, 7, 12]
+    step_s = 0.02
+    truth = load_brake_params()
+    lut = load_coupler_lut()
+    cases = [(catalogue[k].consist(), catalogue[k].speed_kmh) for k in numbers]
+    with cal_mod.DistanceEvaluator(cases, lut, step_s=step_s, workers=2) as ev:
+        distances = ev.distances([truth])[0]
+        targets = [cal_mod.Target(str(k), c, v, float(d), "synthetic",
+                                  cal_mod.braked_weight_percent(c), k)
+                   for k, (c, v), d in zip(numbers, cases, distances)]
+        start = replace(truth, t_app_s=1.3 * truth.t_app_s, v_air_m_s=0.7 * truth.v_air_m_s,
+                        t_fill_s=1.3 * truth.t_fill_s, k0=0.7 * truth.k0)
+        result = cal_mod.calibrate(targets, FIT, start, lut, step_s=step_s, evaluator=ev)
+    return truth, start, result
+
+
+def test_synthetic_parameters_are_recovered(synthetic):
+    truth, start, result = synthetic
+    assert result.converged, result.message
+    for p in result.fit:
+        true, first = getattr(truth, p.field), getattr(start, p.field)
+        assert abs(first - true) == pytest.approx(0.3 * true)
+        assert result.value(p) == pytest.approx(true, rel=0.02), p.name
+    assert np.abs(result.after_error_percent).max() < 0.01
+
+
+def test_synthetic_fit_warns_that_application_delay_and_fill_time_go_together(synthetic):
+    # at one or two speeds a delay and a slower rise both read as dead time
+    _, _, result = synthetic
+    j, k = (next(i for i, p in enumerate(result.fit) if p.name == n) for n in ("t_app", "t_fill"))
+    assert result.correlation[j, k] < -cal_mod.MAX_ABS_CORRELATION
+    assert any("t_app and t_fill are not separately identifiable" in w for w in result.warnings)
+
+
+# --------------------------------------------------------------------------- the uic preset
+
+
+@pytest.fixture(scope="module")
+def uic_rows():
+    params = load_brake_params("brake_params/uic.yaml")
+    return params, validate(params, scenarios=list(range(1, 7)), workers=2)
+
+
+@pytest.mark.parametrize("number", range(1, 7))
+def test_uic_preset_reproduces_uic_column(uic_rows, number):
+    _, rows = uic_rows
+    r = rows[number - 1]
+    assert r.scenario.number == number
+    assert abs(r.uic_error_percent) <= UIC_TOL_PERCENT, (
+        f"run {number}: {r.result.stopping_distance_m:.1f} m vs {r.scenario.paper['uic_m']} m")
+
+
+def test_uic_preset_says_how_it_was_made(uic_rows):
+    params, _ = uic_rows
+    text = open(params.source, encoding="utf-8").read()
+    assert "ltd-brake calibrate --target uic --speed-kmh 100" in text
+    assert "--out config/brake_params/uic.yaml" in text
+    # the length-dependent parameters took part, not just k0 and t_app
+    fitted = text.split("--fit ", 1)[1].split()[0].split(",")
+    assert {"v_air", "t_fill", "k0"} <= set(fitted)
+
+
+def test_uic_curve_matches_table_1():
+    # the data sheet's fit of the UIC column: residual <= 0.13 m on all six rows
+    catalogue = load_scenarios()
+    for k in range(1, 7):
+        consist = catalogue[k].consist()
+        lam = cal_mod.braked_weight_percent(consist)
+        assert cal_mod.uic_curve_distance_m(lam) == pytest.approx(
+            catalogue[k].paper["uic_m"], abs=0.15)
+
+
+# --------------------------------------------------------------------------- parameter file
+
+
+def _main_with_calibrate(monkeypatch):
+    """``cli.main`` with the calibrate subcommand registered (if cli does not yet)."""
+    original = cli.build_parser
+
+    def build_parser():
+        parser = original()
+        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+        if "calibrate" not in sub.choices:
+            cal_mod.add_parser(sub)
+        return parser
+
+    monkeypatch.setattr(cli, "build_parser", build_parser)
+    return cli.main
+
+
+def test_out_file_round_trips(tmp_path, monkeypatch, capsys):
+    main = _main_with_calibrate(monkeypatch)
+    out = tmp_path / "fitted.yaml"
+    code = main(["calibrate", "--target", "paper", "--fit", "k0", "--scenarios", "1,2",
+                 "--step-s", "0.02", "--jobs", "2", "--quiet", "--out", str(out)])
+    assert code == 0
+    report = capsys.readouterr().out
+    assert "| k0 |" in report and f"wrote {out}" in report
+    params = load_brake_params(out)
+    start = load_brake_params()
+    assert params.source == str(out)
+    # only k0 moved; the written values are the ones the residuals were computed with
+    assert params.k0 != start.k0
+    assert replace(params, k0=start.k0, source="") == replace(start, source="")
+    text = out.read_text()
+    assert "--fit k0 --scenarios 1,2 --step-s 0.02" in text
+    lut = load_coupler_lut()
+    sc = load_scenarios()[1]
+    d = emergency_stop(sc.consist(), sc.speed_kmh, params, lut, step_s=0.02).stopping_distance_m
+    assert f"sim {d:6.1f} m" in text
+
+
+# --------------------------------------------------------------------------- bad input
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--fit", "t_app,brake_force"], ["--fit", "unknown parameter 'brake_force'", "t_app",
+                                       "v_air", "k0"]),
+    (["--fit", ","], ["--fit", "at least one parameter"]),
+    (["--target", "uic", "--speed-kmh", "50"], ["--speed-kmh", "100 km/h"]),
+    (["--target", "paper", "--scenarios", "1,7"], ["scenario 7", "50 km/h"]),
+    (["--scenarios", "1-x"], ["--scenarios", "1-6"]),
+    (["--target", "paper", "--consist", "consists/e402b_10_shimmns_80t.yaml"],
+     ["--consist", "--target uic"]),
+])
+def test_bad_input_exits_2_with_clear_message(monkeypatch, capsys, argv, words):
+    main = _main_with_calibrate(monkeypatch)
+    assert main(["calibrate", *argv, "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("ltd-brake calibrate: error:")
+    assert "Traceback" not in err
+    for w in words:
+        assert w in err
+
+
+def test_unknown_parameter_raises_input_error():
+    with pytest.raises(InputError, match="unknown parameter 'tapp'"):
+        cal_mod.parse_fit("tapp,k0")
+    assert [p.field for p in cal_mod.parse_fit("t_app_s, k0,t_app")] == ["t_app_s", "k0"]
+
+
+def test_help_teaches_units_and_targets(monkeypatch, capsys):
+    main = _main_with_calibrate(monkeypatch)
+    with pytest.raises(SystemExit) as exc:
+        main(["calibrate", "--help"])
+    assert exc.value.code == 0
+    text = capsys.readouterr().out
+    for w in ("UIC 544-1", "LTDPoliTo", "S = C/lambda + D", "km/h", "[m/s]", "t_fill",
+              "confidence"):
+        assert w in text
