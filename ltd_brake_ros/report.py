@@ -1,0 +1,749 @@
+"""Analysis of a recorded run: the numbers a railway engineer asks first, plots and CSV.
+
+The report reads only what the plant published (the recorded topics), so it gives the same
+answer for a live ``sim_node`` run, a replayed one and an offline recording.
+
+Topics used (any namespace; the first one holding ``vehicles/speed`` is analysed):
+
+==============================  ===========================================================
+``<ns>/vehicles/speed``         speed of each vehicle, head first [m/s]
+``<ns>/vehicles/position``      chainage of each vehicle [m]
+``<ns>/vehicles/brake_force``   air-brake retarding force of each vehicle [N]
+``<ns>/couplers/force``         coupler force, coupler 1 behind the head; draft (tension)
+                                positive, buff (compression) negative [N]
+``<ns>/brake_command``          emergency brake command (std_msgs/Bool)
+==============================  ===========================================================
+
+Definitions: the emergency command is the first ``brake_command`` that is true (its record
+time); the train has stopped at the first recorded ``vehicles/speed`` sample at or after the
+command in which every vehicle is at most 1e-3 m/s; the stopping distance is the head's
+position then minus its position at the command (interpolated between samples). Peak forces
+are the extremes over the whole recording.
+
+The file is streamed: time series of the head and tail (a few numbers per sample) are kept,
+the coupler heat map is reduced on the fly to at most a few thousand time bins (each holding
+the force of largest magnitude in it, sign kept), and the CSV export re-reads the file.
+"""
+from __future__ import annotations
+
+import json
+import struct
+import sys
+import warnings
+from array import array
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from mcap.exceptions import McapError
+
+from .bag import (TruncatedBagWarning, _iter_messages, bag_info, default_recover_destination,
+                  recover)
+
+__all__ = ["RunReport", "analyse", "write_plots", "write_csv", "run_metadata", "add_parsers",
+           "decode_float64_array"]
+
+STANDSTILL_M_S = 1e-3
+_HEAT_BINS = 1500
+_SIGN = ("coupler force: draft (tension) positive, buff (compression) negative; "
+         "coupler 1 is behind the head")
+
+
+# --------------------------------------------------------------------------- CDR decoding
+
+
+def _align(pos: int, n: int) -> int:
+    # CDR aligns relative to the end of the 4-byte encapsulation header
+    return 4 + ((pos - 4 + n - 1) & ~(n - 1))
+
+
+def decode_float64_array(data: bytes) -> np.ndarray:
+    """Values of a CDR-serialized ``std_msgs/msg/Float64MultiArray``, without ROS.
+
+    Parameters
+    ----------
+    data : bytes
+        The message as serialized by rclpy (4-byte encapsulation header, then CDR).
+
+    Returns
+    -------
+    ndarray
+        A read-only view of ``data`` (float64).
+    """
+    end = "<" if data[1] & 1 else ">"
+    u32 = struct.Struct(end + "I").unpack_from
+    (ndim,) = u32(data, 4)
+    pos = 8
+    for _ in range(ndim):
+        pos = _align(pos, 4)
+        (slen,) = u32(data, pos)
+        pos = _align(pos + 4 + slen, 4) + 8  # label, then size and stride
+    pos = _align(pos, 4) + 4  # data_offset
+    pos = _align(pos, 4)
+    (n,) = u32(data, pos)
+    pos = _align(pos + 4, 8)
+    return np.frombuffer(data, dtype=end + "f8", count=n, offset=pos)
+
+
+def _decode_bool(data: bytes) -> bool:
+    return data[4] != 0
+
+
+# --------------------------------------------------------------------------- run metadata
+
+
+def run_metadata(sim, *, scenario=None, parameters: dict | None = None, **extra) -> dict:
+    """Run information to store in a recording (``BagWriter(metadata=...)``).
+
+    Parameters
+    ----------
+    sim : Simulator
+        The simulator of the run (its consist and initial speed are summarised).
+    scenario : str or int, optional
+        Scenario name or number.
+    parameters : dict, optional
+        Node parameters (JSON-serialisable values).
+    **extra
+        Any further JSON-serialisable entries.
+
+    Returns
+    -------
+    dict
+    """
+    c = sim.consist
+    groups: list[list] = []
+    for v in c.vehicles:
+        if groups and groups[-1][0] == v.name:
+            groups[-1][1] += 1
+        else:
+            groups.append([v.name, 1])
+    meta = {
+        "consist": {"name": c.name, "source": str(c.source), "vehicles": int(sim.n),
+                    "length_m": float(c.length_m), "mass_t": float(c.mass_kg) / 1e3,
+                    "braked_weight_percent": float(sim.braked_weight_percent()),
+                    "composition": groups},
+        "initial_speed_kmh": float(sim.speed_kmh),
+        "step_s": float(sim.step_s),
+    }
+    if scenario is not None:
+        meta["scenario"] = scenario
+    if parameters:
+        meta["parameters"] = dict(parameters)
+    meta.update(extra)
+    return meta
+
+
+# --------------------------------------------------------------------------- streaming pieces
+
+
+class _Series:
+    """Growing float64 columns (8 bytes a value)."""
+
+    def __init__(self, *names):
+        self.cols = {n: array("d") for n in names}
+
+    def add(self, *values):
+        for col, v in zip(self.cols.values(), values):
+            col.append(v)
+
+    def np(self, name) -> np.ndarray:
+        return np.frombuffer(self.cols[name], dtype=float).copy() if self.cols[name] \
+            else np.zeros(0)
+
+    def __len__(self):
+        return len(next(iter(self.cols.values())))
+
+
+class _HeatMap:
+    """Coupler force over time reduced to at most ``2 * max_bins`` bins, streaming.
+
+    Each bin holds, per coupler, the sample of largest magnitude (sign kept), so peaks stay
+    visible however long the run. When the bins fill, neighbours merge and the bin doubles.
+    """
+
+    def __init__(self, max_bins: int = _HEAT_BINS):
+        self.max_bins = max_bins
+        self.per_bin = 1
+        self.values = None
+        self.t0 = array("d")
+        self.t1 = array("d")
+        self.n = 0
+        self._cur = None
+        self._cur_n = 0
+
+    def add(self, t: float, f: np.ndarray) -> None:
+        if self._cur is None or self._cur.shape != f.shape:
+            if self._cur is not None:  # the train changed length: keep the first layout
+                return
+            self.values = np.zeros((2 * self.max_bins, f.size))
+            self._cur = f.copy()
+            self._cur_t0 = t
+            self._cur_n = 1
+        elif self._cur_n == 0:
+            self._cur[:] = f
+            self._cur_t0 = t
+            self._cur_n = 1
+        else:
+            np.copyto(self._cur, f, where=np.abs(f) > np.abs(self._cur))
+            self._cur_n += 1
+        self._cur_t1 = t
+        if self._cur_n >= self.per_bin:
+            self._push()
+
+    def _push(self) -> None:
+        self.values[self.n] = self._cur
+        self.t0.append(self._cur_t0)
+        self.t1.append(self._cur_t1)
+        self.n += 1
+        self._cur_n = 0
+        if self.n == self.values.shape[0]:  # full: merge neighbours, all of the same width
+            a, b = self.values[0:self.n:2], self.values[1:self.n:2]
+            self.values[: self.n // 2] = np.where(np.abs(b) > np.abs(a), b, a)
+            self.t0 = self.t0[0::2]
+            self.t1 = self.t1[1::2]
+            self.n //= 2
+            self.per_bin *= 2
+
+    def result(self):
+        if self._cur is not None and self._cur_n:
+            self._push()
+        if self.values is None:
+            return np.zeros(0), np.zeros(0), np.zeros((0, 0))
+        return (np.asarray(self.t0), np.asarray(self.t1), self.values[: self.n].copy())
+
+
+# --------------------------------------------------------------------------- the report
+
+
+@dataclass
+class RunReport:
+    """What :func:`analyse` found in a recording. Times are simulation times [s].
+
+    Attributes
+    ----------
+    source : str
+        The recording analysed.
+    namespace : str
+        Namespace of the analysed topics (``/train1``), ``""`` for the root.
+    metadata : dict
+        Run information stored by the recorder (consist summary, parameters, scenario).
+    topics : dict of str to int
+        Messages per recorded topic.
+    complete : bool
+        The recording was finished properly (False: read up to the last complete chunk).
+    n_vehicles, n_couplers : int
+    start_time_s, end_time_s : float
+        First and last recorded sample.
+    command_time_s : float or None
+        First emergency command.
+    stop_time_s : float or None
+        When the train stood still (see the module notes).
+    stopping_time_s, stopping_distance_m : float or None
+        From the command to the stop.
+    peak_draft_kN, peak_buff_kN : float
+        Largest draft (positive) and buff (negative) coupler force [kN].
+    peak_draft_coupler, peak_buff_coupler : int
+        Coupler number, 1 behind the head (0 when there are no couplers).
+    peak_draft_time_s, peak_buff_time_s : float
+    coupler_peak_draft_N, coupler_peak_buff_N : ndarray
+        Per coupler along the train [N].
+    coupler_peak_draft_time_s, coupler_peak_buff_time_s : ndarray
+    speed_time_s, head_speed_m_s, tail_speed_m_s : ndarray
+    brake_time_s, head_wagon_brake_force_N, tail_brake_force_N : ndarray
+        Brake force of the first wagon behind the head vehicle and of the last vehicle.
+    head_wagon_index : int
+        Vehicle index (0 = head) of the "head wagon" plotted.
+    heat_t0_s, heat_t1_s, heat_force_N : ndarray
+        Coupler-force heat map: time span of each bin, and (bins x couplers) forces.
+    """
+
+    source: str
+    namespace: str = ""
+    metadata: dict = field(default_factory=dict)
+    topics: dict = field(default_factory=dict)
+    complete: bool = True
+    n_vehicles: int = 0
+    n_couplers: int = 0
+    start_time_s: float = 0.0
+    end_time_s: float = 0.0
+    command_time_s: float | None = None
+    stop_time_s: float | None = None
+    stopping_time_s: float | None = None
+    stopping_distance_m: float | None = None
+    peak_draft_kN: float = 0.0
+    peak_draft_coupler: int = 0
+    peak_draft_time_s: float = 0.0
+    peak_buff_kN: float = 0.0
+    peak_buff_coupler: int = 0
+    peak_buff_time_s: float = 0.0
+    coupler_peak_draft_N: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    coupler_peak_draft_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    coupler_peak_buff_N: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    coupler_peak_buff_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    speed_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    head_speed_m_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    tail_speed_m_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    brake_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    head_wagon_brake_force_N: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    tail_brake_force_N: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    head_wagon_index: int = 0
+    heat_t0_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    heat_t1_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    heat_force_N: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    plots: list = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        """Scalars, consist summary and per-coupler peaks, JSON-serialisable."""
+        keys = ("source", "namespace", "complete", "n_vehicles", "n_couplers", "start_time_s",
+                "end_time_s", "command_time_s", "stop_time_s", "stopping_time_s",
+                "stopping_distance_m", "peak_draft_kN", "peak_draft_coupler",
+                "peak_draft_time_s", "peak_buff_kN", "peak_buff_coupler", "peak_buff_time_s")
+        out = {k: getattr(self, k) for k in keys}
+        out["metadata"] = self.metadata
+        out["topics"] = self.topics
+        out["coupler_peaks"] = {
+            "coupler": list(range(1, self.n_couplers + 1)),
+            "peak_draft_N": self.coupler_peak_draft_N.tolist(),
+            "peak_draft_time_s": self.coupler_peak_draft_time_s.tolist(),
+            "peak_buff_N": self.coupler_peak_buff_N.tolist(),
+            "peak_buff_time_s": self.coupler_peak_buff_time_s.tolist()}
+        out["sign_convention"] = _SIGN
+        out["plots"] = [str(p) for p in self.plots]
+        return out
+
+    def describe(self) -> str:
+        """Human-readable summary."""
+        lines = [f"Run: {self.source}" + ("" if self.complete else
+                                          "  (unfinished recording: read to its last "
+                                          "complete chunk)")]
+        c = self.metadata.get("consist")
+        if isinstance(c, dict):
+            parts = [str(c.get("name", "consist"))]
+            if "vehicles" in c:
+                parts.append(f"{c['vehicles']} vehicles")
+            if "length_m" in c:
+                parts.append(f"{c['length_m']:.1f} m")
+            if "mass_t" in c:
+                parts.append(f"{c['mass_t']:.1f} t")
+            if "braked_weight_percent" in c:
+                parts.append(f"braked weight {c['braked_weight_percent']:.1f} %")
+            lines.append("Consist: " + ", ".join(parts))
+        else:
+            lines.append(f"Consist: not recorded ({self.n_vehicles} vehicles in the data)")
+        if "initial_speed_kmh" in self.metadata:
+            lines.append(f"Initial speed: {self.metadata['initial_speed_kmh']:.1f} km/h")
+        if "scenario" in self.metadata:
+            lines.append(f"Scenario: {self.metadata['scenario']}")
+        lines.append(f"Recorded: t = {self.start_time_s:.2f} to {self.end_time_s:.2f} s, "
+                     f"{sum(self.topics.values())} messages on {len(self.topics)} topics")
+        if self.command_time_s is None:
+            lines.append("Emergency command: none recorded")
+        else:
+            lines.append(f"Emergency command: t = {self.command_time_s:.2f} s")
+        if self.stop_time_s is None:
+            if self.command_time_s is not None:
+                lines.append("Stop: the train had not stopped when the recording ended")
+        else:
+            lines.append(f"Stopped: t = {self.stop_time_s:.2f} s; stopping distance "
+                         f"{self.stopping_distance_m:.1f} m, stopping time "
+                         f"{self.stopping_time_s:.2f} s")
+        if self.n_couplers:
+            lines.append(f"Peak draft: {self.peak_draft_kN:.1f} kN at coupler "
+                         f"{self.peak_draft_coupler} (t = {self.peak_draft_time_s:.2f} s)")
+            lines.append(f"Peak buff: {self.peak_buff_kN:.1f} kN at coupler "
+                         f"{self.peak_buff_coupler} (t = {self.peak_buff_time_s:.2f} s)")
+            lines.append(f"Sign convention: {_SIGN}")
+        for p in self.plots:
+            lines.append(f"Plot: {p}")
+        return "\n".join(lines)
+
+
+def _find_namespace(topics, namespace: str | None) -> str:
+    if namespace is not None:
+        return namespace.rstrip("/")
+    candidates = [t[: -len("/vehicles/speed")] for t in topics if t.endswith("/vehicles/speed")]
+    if not candidates:
+        raise ValueError("the recording has no <ns>/vehicles/speed topic: nothing to analyse")
+    return candidates[0]
+
+
+def analyse(path, namespace: str | None = None) -> RunReport:
+    """Analyse a recorded run (streaming).
+
+    Parameters
+    ----------
+    path : str or path-like
+        Bag folder or ``.mcap`` file; an unfinished file is read to its last complete chunk.
+    namespace : str, optional
+        Namespace of the plant's topics (default: the first with ``vehicles/speed``).
+
+    Returns
+    -------
+    RunReport
+
+    Raises
+    ------
+    ValueError
+        The recording holds no vehicle speeds.
+    """
+    info = bag_info(path)
+    ns = _find_namespace(info.topics, namespace)
+    t_speed, t_pos = f"{ns}/vehicles/speed", f"{ns}/vehicles/position"
+    t_brake, t_coupler = f"{ns}/vehicles/brake_force", f"{ns}/couplers/force"
+    t_cmd = f"{ns}/brake_command"
+    speed = _Series("t", "head", "tail", "vmax")
+    pos = _Series("t", "head")
+    brake = _Series("t", "head", "tail")
+    heat = _HeatMap()
+    draft = draft_t = buff = buff_t = None
+    command_t = None
+    n_vehicles = 0
+    head_wagon = None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TruncatedBagWarning)
+        for _scan, channel, msg in _iter_messages(path, strict=True):
+            topic = channel.topic
+            t = msg.log_time * 1e-9
+            if topic == t_speed:
+                v = decode_float64_array(msg.data)
+                if v.size:
+                    n_vehicles = v.size
+                    speed.add(t, v[0], v[-1], float(np.abs(v).max()))
+            elif topic == t_pos:
+                x = decode_float64_array(msg.data)
+                if x.size:
+                    pos.add(t, x[0])
+            elif topic == t_brake:
+                fb = decode_float64_array(msg.data)
+                if fb.size:
+                    if head_wagon is None:
+                        head_wagon = 1 if fb.size > 1 else 0
+                    brake.add(t, fb[head_wagon], fb[-1])
+            elif topic == t_coupler:
+                f = decode_float64_array(msg.data)
+                if not f.size:
+                    continue
+                if draft is None or draft.shape != f.shape:
+                    if draft is not None:
+                        continue
+                    draft = np.zeros(f.size)
+                    buff = np.zeros(f.size)
+                    draft_t = np.zeros(f.size)
+                    buff_t = np.zeros(f.size)
+                up = f > draft
+                draft[up] = f[up]
+                draft_t[up] = t
+                down = f < buff
+                buff[down] = f[down]
+                buff_t[down] = t
+                heat.add(t, f)
+            elif topic == t_cmd and command_t is None and _decode_bool(msg.data):
+                command_t = t
+    if not len(speed):
+        raise ValueError(f"{path}: no {t_speed} samples recorded")
+    if command_t is None:
+        for key in ("emergency_time_s", "command_time_s"):
+            if isinstance(info.metadata.get(key), (int, float)):
+                command_t = float(info.metadata[key])
+                break
+    ts, vmax = speed.np("t"), speed.np("vmax")
+    rep = RunReport(source=str(path), namespace=ns, metadata=info.metadata,
+                    topics={k: v.message_count for k, v in info.topics.items()},
+                    complete=info.complete, n_vehicles=n_vehicles,
+                    start_time_s=info.start_ns * 1e-9, end_time_s=info.end_ns * 1e-9,
+                    command_time_s=command_t, speed_time_s=ts,
+                    head_speed_m_s=speed.np("head"), tail_speed_m_s=speed.np("tail"),
+                    brake_time_s=brake.np("t"), head_wagon_brake_force_N=brake.np("head"),
+                    tail_brake_force_N=brake.np("tail"), head_wagon_index=head_wagon or 0)
+    if command_t is not None:
+        after = np.flatnonzero((ts >= command_t - 1e-9) & (vmax <= STANDSTILL_M_S))
+        if after.size:
+            rep.stop_time_s = float(ts[after[0]])
+            rep.stopping_time_s = rep.stop_time_s - command_t
+            tp, xp = pos.np("t"), pos.np("head")
+            if tp.size:
+                rep.stopping_distance_m = float(
+                    _head_position(tp, xp, ts, speed.np("head"), rep.stop_time_s)
+                    - _head_position(tp, xp, ts, speed.np("head"), command_t))
+    if draft is not None:
+        rep.n_couplers = int(draft.size)
+        rep.coupler_peak_draft_N, rep.coupler_peak_draft_time_s = draft, draft_t
+        rep.coupler_peak_buff_N, rep.coupler_peak_buff_time_s = buff, buff_t
+        jd, jb = int(np.argmax(draft)), int(np.argmin(buff))
+        rep.peak_draft_kN, rep.peak_draft_coupler = float(draft[jd]) / 1e3, jd + 1
+        rep.peak_draft_time_s = float(draft_t[jd])
+        rep.peak_buff_kN, rep.peak_buff_coupler = float(buff[jb]) / 1e3, jb + 1
+        rep.peak_buff_time_s = float(buff_t[jb])
+        rep.heat_t0_s, rep.heat_t1_s, rep.heat_force_N = heat.result()
+    return rep
+
+
+def _head_position(tp, xp, ts, vs, t: float) -> float:
+    """Head position at ``t``: interpolated, or extrapolated at the recorded speed."""
+    if t < tp[0]:
+        v = float(np.interp(tp[0], ts, vs)) if ts.size else 0.0
+        return float(xp[0] - v * (tp[0] - t))
+    if t > tp[-1]:
+        v = float(np.interp(tp[-1], ts, vs)) if ts.size else 0.0
+        return float(xp[-1] + v * (t - tp[-1]))
+    return float(np.interp(t, tp, xp))
+
+
+# --------------------------------------------------------------------------- plots and CSV
+
+
+def write_plots(report: RunReport, outdir) -> list[Path]:
+    """Write the engineer's plots as PNG files.
+
+    ``speed.png`` (head and tail speed), ``brake_force.png`` (first wagon and tail, as the
+    paper's Fig. 7), ``coupler_peaks.png`` (peak draft and buff per coupler, Fig. 6) and
+    ``coupler_force_map.png`` (coupler x time, diverging colours centred at zero, draft red).
+
+    Parameters
+    ----------
+    report : RunReport
+    outdir : str or path-like
+        Created if needed.
+
+    Returns
+    -------
+    list of pathlib.Path
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import TwoSlopeNorm
+    from matplotlib.figure import Figure
+
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    title = str(report.metadata.get("consist", {}).get("name", "")) \
+        if isinstance(report.metadata.get("consist"), dict) else ""
+
+    def save(fig, name):
+        FigureCanvasAgg(fig)
+        p = out / name
+        fig.savefig(p, dpi=120)
+        paths.append(p)
+
+    def mark_command(ax):
+        if report.command_time_s is not None:
+            ax.axvline(report.command_time_s, color="0.4", ls=":", lw=1, label="emergency command")
+        if report.stop_time_s is not None:
+            ax.axvline(report.stop_time_s, color="0.4", ls="--", lw=1, label="stopped")
+
+    fig = Figure(figsize=(8, 4.5), layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot(report.speed_time_s, report.head_speed_m_s, label="head (vehicle 0)")
+    ax.plot(report.speed_time_s, report.tail_speed_m_s, label=f"tail (vehicle "
+            f"{max(report.n_vehicles - 1, 0)})", ls="--")
+    mark_command(ax)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("speed [m/s]")
+    sec = ax.secondary_yaxis("right", functions=(lambda v: v * 3.6, lambda v: v / 3.6))
+    sec.set_ylabel("speed [km/h]")
+    ax.set_title(f"Speed {title}".strip())
+    ax.grid(alpha=0.3)
+    ax.legend()
+    save(fig, "speed.png")
+
+    fig = Figure(figsize=(8, 4.5), layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot(report.brake_time_s, report.head_wagon_brake_force_N / 1e3,
+            label=f"head wagon (vehicle {report.head_wagon_index})")
+    ax.plot(report.brake_time_s, report.tail_brake_force_N / 1e3,
+            label=f"tail (vehicle {max(report.n_vehicles - 1, 0)})", ls="--")
+    mark_command(ax)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("brake force [kN]")
+    ax.set_title(f"Brake force, head wagon and tail {title}".strip())
+    ax.grid(alpha=0.3)
+    ax.legend()
+    save(fig, "brake_force.png")
+
+    fig = Figure(figsize=(8, 4.5), layout="constrained")
+    ax = fig.add_subplot()
+    j = np.arange(1, report.n_couplers + 1)
+    ax.bar(j, report.coupler_peak_draft_N / 1e3, color="tab:red", label="peak draft (tension)")
+    ax.bar(j, report.coupler_peak_buff_N / 1e3, color="tab:blue",
+           label="peak buff (compression)")
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.set_xlabel("coupler (1 = behind the head)")
+    ax.set_ylabel("coupler force [kN]  (draft +, buff -)")
+    ax.set_title(f"Peak coupler forces along the train {title}".strip())
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend()
+    save(fig, "coupler_peaks.png")
+
+    fig = Figure(figsize=(9, 4.8), layout="constrained")
+    ax = fig.add_subplot()
+    if report.heat_force_N.size:
+        data = report.heat_force_N.T / 1e3
+        lim = float(np.abs(data).max()) or 1.0
+        t0, t1 = report.heat_t0_s, report.heat_t1_s
+        last = max(t1[-1], t0[-1] + (t0[-1] - t0[-2])) if t0.size > 1 else t1[-1] + 1e-3
+        x = np.append(t0, last)  # bin edges: each bin starts at its first sample
+        y = np.arange(report.n_couplers + 1) + 0.5
+        im = ax.pcolormesh(x, y, data, shading="flat", cmap="RdBu_r", rasterized=True,
+                           norm=TwoSlopeNorm(vcenter=0.0, vmin=-lim, vmax=lim))
+        fig.colorbar(im, ax=ax, label="coupler force [kN]  (draft +, buff -)")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("coupler (1 = behind the head)")
+    ax.set_title(f"Coupler force {title}".strip())
+    save(fig, "coupler_force_map.png")
+    report.plots = paths
+    return paths
+
+
+def write_csv(report: RunReport, outdir) -> list[Path]:
+    """Export the recorded arrays and the per-coupler peaks as CSV (SI units).
+
+    One file per array topic (``speed_m_s.csv``, ``position_m.csv``, ``brake_force_N.csv``,
+    ``traction_force_N.csv``, ``coupler_force_N.csv``: a ``time_s`` column, then one column
+    per vehicle ``vehicle_0`` (head) ... or coupler ``coupler_1`` (behind the head) ...),
+    ``brake_command.csv`` and ``coupler_peaks.csv``. The recording is streamed again.
+
+    Parameters
+    ----------
+    report : RunReport
+    outdir : str or path-like
+
+    Returns
+    -------
+    list of pathlib.Path
+    """
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    ns = report.namespace
+    files = {f"{ns}/vehicles/speed": ("speed_m_s.csv", "vehicle", 0),
+             f"{ns}/vehicles/position": ("position_m.csv", "vehicle", 0),
+             f"{ns}/vehicles/brake_force": ("brake_force_N.csv", "vehicle", 0),
+             f"{ns}/vehicles/traction_force": ("traction_force_N.csv", "vehicle", 0),
+             f"{ns}/couplers/force": ("coupler_force_N.csv", "coupler", 1)}
+    handles: dict = {}
+    blocks: dict = {}
+    written = []
+
+    def flush(topic):
+        rows = blocks.pop(topic, None)
+        if rows:
+            np.savetxt(handles[topic], np.array(rows), delimiter=",", fmt="%.10g")
+
+    try:
+        cmd = open(out / "brake_command.csv", "w")  # noqa: SIM115 - closed below
+        handles["__cmd"] = cmd
+        cmd.write("time_s,emergency\n")
+        written.append(out / "brake_command.csv")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", TruncatedBagWarning)
+            for _scan, channel, msg in _iter_messages(report.source, strict=True):
+                topic = channel.topic
+                if topic == f"{ns}/brake_command":
+                    cmd.write(f"{msg.log_time * 1e-9:.9f},{int(_decode_bool(msg.data))}\n")
+                    continue
+                spec = files.get(topic)
+                if spec is None:
+                    continue
+                values = decode_float64_array(msg.data)
+                if topic not in handles:
+                    name, label, first = spec
+                    h = handles[topic] = open(out / name, "w")  # noqa: SIM115
+                    h.write(",".join(["time_s"] + [f"{label}_{i + first}"
+                                                   for i in range(values.size)]) + "\n")
+                    written.append(out / name)
+                rows = blocks.setdefault(topic, [])
+                if rows and len(rows[0]) != values.size + 1:
+                    continue  # a change of train length cannot go in the same table
+                rows.append(np.concatenate(([msg.log_time * 1e-9], values)))
+                if len(rows) >= 1000:
+                    flush(topic)
+        for topic in list(blocks):
+            flush(topic)
+    finally:
+        for h in handles.values():
+            h.close()
+    peaks = out / "coupler_peaks.csv"
+    table = np.column_stack((np.arange(1, report.n_couplers + 1), report.coupler_peak_draft_N,
+                             report.coupler_peak_draft_time_s, report.coupler_peak_buff_N,
+                             report.coupler_peak_buff_time_s))
+    np.savetxt(peaks, table, delimiter=",", fmt=["%d"] + ["%.10g"] * 4, comments="",
+               header="coupler,peak_draft_N,peak_draft_time_s,peak_buff_N,peak_buff_time_s")
+    written.append(peaks)
+    return written
+
+
+# --------------------------------------------------------------------------- command line
+
+
+def _default_outdir(run: Path) -> Path:
+    return run / "report" if run.is_dir() else run.with_name(run.stem + "_report")
+
+
+def add_parsers(subparsers) -> None:
+    """Add the ``report`` and ``recover`` subcommands to the ``ltd-brake`` parser.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The object returned by ``ArgumentParser.add_subparsers``.
+    """
+    ap = subparsers.add_parser(
+        "report", help="analyse a recorded run: distance, peak forces, plots",
+        description="Analyse a recorded run (bag folder or .mcap): emergency command time, "
+                    "stopping distance and time, peak draft and buff force with coupler number "
+                    "and time; writes PNG plots (speed, brake force, peak force per coupler, "
+                    "coupler force map) and, with --csv, the arrays in SI units.")
+    ap.add_argument("run", help="bag folder or .mcap file")
+    ap.add_argument("--out", help="directory for plots and CSV (default: RUN/report, or "
+                                  "<file>_report beside a .mcap file)")
+    ap.add_argument("--csv", action="store_true", help="also export the arrays as CSV")
+    ap.add_argument("--json", action="store_true", help="print the numbers as JSON")
+    ap.add_argument("--namespace", help="namespace of the plant's topics (default: found)")
+    ap.set_defaults(func=cmd_report)
+    ap = subparsers.add_parser(
+        "recover", help="rewrite a recording cut short (e.g. SIGKILL) as a complete bag",
+        description="Rewrite a recording whose recorder was killed into a complete, readable "
+                    "bag folder: every complete chunk is kept.")
+    ap.add_argument("src", help="bag folder or .mcap file")
+    ap.add_argument("dst", nargs="?", help="new bag folder (default: SRC_recovered)")
+    ap.set_defaults(func=cmd_recover)
+
+
+def cmd_report(args) -> int:
+    """Run ``ltd-brake report`` for parsed arguments; returns the exit status."""
+    run = Path(args.run)
+    try:
+        rep = analyse(run, args.namespace)
+    except (FileNotFoundError, ValueError, McapError) as exc:
+        print(f"ltd-brake report: error: {exc}", file=sys.stderr)
+        return 2
+    out = Path(args.out) if args.out else _default_outdir(run)
+    plots = write_plots(rep, out)
+    csvs = write_csv(rep, out) if args.csv else []
+    if args.json:
+        d = rep.as_dict()
+        d["plots"] = [str(p) for p in plots]
+        d["csv"] = [str(p) for p in csvs]
+        print(json.dumps(d, indent=2))
+    else:
+        print(rep.describe())
+        print(f"plots: {len(plots)} PNG files in {out}")
+        if csvs:
+            print(f"CSV: {len(csvs)} files in {out}")
+    return 0
+
+
+def cmd_recover(args) -> int:
+    """Run ``ltd-brake recover`` for parsed arguments; returns the exit status."""
+    dst = args.dst or default_recover_destination(args.src)
+    try:
+        res = recover(args.src, dst)
+    except (FileNotFoundError, FileExistsError, ValueError, McapError) as exc:
+        print(f"ltd-brake recover: error: {exc}", file=sys.stderr)
+        return 2
+    state = "was complete" if res["complete"] else f"ended early ({res['stopped_at']})"
+    print(f"source {state}")
+    print(f"recovered {res['messages']} messages from {res['chunks']} complete chunks "
+          f"into {res['output']}")
+    for topic, n in res["topics"].items():
+        print(f"  {topic}: {n}")
+    return 0
