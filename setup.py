@@ -36,6 +36,7 @@ setup(
         "console_scripts": [
             "ltd-brake = ltd_brake_ros.cli:main",
             "sim_node = ltd_brake_ros.sim_node:main",
+            "replay_node = ltd_brake_ros.replay_node:main",
         ],
     },
 )

@@ -1,0 +1,815 @@
+"""``sim_node``: the train simulator served as a live ROS 2 plant.
+
+The node is a thin adapter around :class:`~ltd_brake_ros.simulator.Simulator`: it advances the
+simulator in fixed chunks of simulated time, paced by a real-time factor, and publishes the state
+of the train once per chunk. It contains no physics.
+
+Interface (topic names are relative, so ``--ros-args -r __ns:=/train1`` moves them; SI units;
+vehicle 0 is the head, coupler 1 is the one behind it):
+
+* publishes ``vehicles/speed`` [m/s, forward positive], ``vehicles/position`` [m, chainage of
+  each vehicle's centre, the head's front starts at 0], ``vehicles/brake_force`` [N, retarding
+  force positive] and ``couplers/force`` [N, draft/tension positive, buff negative], all
+  ``std_msgs/msg/Float64MultiArray`` with ``layout.dim[0]`` labelled ``vehicle`` or ``coupler``;
+  ``/clock`` (``rosgraph_msgs/msg/Clock``) after every chunk when ``publish_clock`` is true;
+  ``/diagnostics`` (``diagnostic_msgs/msg/DiagnosticArray``) about once per wall second;
+* subscribes ``brake_command`` (``std_msgs/msg/Bool``): true applies the emergency brake at the
+  start of the next chunk, false releases it (exponential decay with the brake parameters'
+  ``t_release_s``); a repeated true does not restart the application;
+* services ``~/reset`` (``std_srvs/srv/Trigger``), ``~/pause`` (``std_srvs/srv/SetBool``) and
+  ``~/step`` (``std_srvs/srv/Trigger``, advances ``steps_per_call`` chunks when in lock-step
+  mode or paused).
+
+Threading: one plant thread owns the simulator and does every advance and every publication;
+the executor thread only turns ROS callbacks (commands, services, parameter changes) into jobs
+that the plant thread runs between two chunks. So a chunk is always advanced and published in
+one place, lock-step runs are deterministic, and everything the node publishes or receives passes
+through :meth:`SimNode._emit` or :meth:`SimNode._on_input` on that one thread, where
+:meth:`SimNode.add_tap` observers (a recorder, a test) see it in order.
+"""
+from __future__ import annotations
+
+import array
+import math
+import queue
+import sys
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+import rclpy
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                ParameterType, SetParametersResult)
+from rclpy.exceptions import InvalidParameterTypeException, ParameterException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Bool, Float64MultiArray, MultiArrayDimension
+from std_srvs.srv import SetBool, Trigger
+
+from .inputs import (BrakeParams, Consist, CouplerLUT, InputError, get_scenario,
+                     load_brake_params, load_consist, load_coupler_lut, resolve_config_path)
+from .simulator import Commands, SimulationError, Simulator, Snapshot
+
+NODE_NAME = "sim_node"
+
+#: State topics: lossless for a subscriber that keeps up, never latched.
+STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                       reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.VOLATILE)
+#: Only the newest time matters; a reliable writer also serves best-effort readers
+#: (rclpy's and rclcpp's time sources subscribe best-effort).
+CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                       reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.VOLATILE)
+COMMAND_QOS = STATE_QOS
+DIAGNOSTICS_QOS = STATE_QOS
+
+#: Published arrays: topic, Snapshot attribute, ``layout.dim[0].label``.
+ARRAY_TOPICS = (
+    ("vehicles/speed", "speed_m_s", "vehicle"),
+    ("vehicles/position", "position_m", "vehicle"),
+    ("vehicles/brake_force", "brake_force_N", "vehicle"),
+    ("couplers/force", "coupler_force_N", "coupler"),
+)
+CLOCK_TOPIC = "/clock"
+DIAGNOSTICS_TOPIC = "/diagnostics"
+BRAKE_COMMAND_TOPIC = "brake_command"
+
+#: Wall time between two diagnostics messages [s].
+DIAGNOSTICS_PERIOD_S = 1.0
+#: Largest accepted real-time factor [-].
+MAX_REAL_TIME_FACTOR = 1000.0
+#: Tolerance when comparing simulated times built from summed chunks [s].
+TIME_EPS_S = 1e-9
+#: Pacing lateness samples kept for statistics (bounded: memory stays flat on long runs).
+LATENESS_SAMPLES = 10_000
+
+
+# --------------------------------------------------------------------------- parameters
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """Declaration of one node parameter.
+
+    Attributes
+    ----------
+    name : str
+        Parameter name.
+    default : bool, int, float or str
+        Default value; its Python type is the parameter type.
+    description : str
+        Shown by ``ros2 param describe`` (units in brackets).
+    read_only : bool
+        Structural: fixed once the node runs.
+    lo, hi : float or None
+        Accepted range (inclusive), for numbers.
+    """
+
+    name: str
+    default: Any
+    description: str
+    read_only: bool = True
+    lo: float | None = None
+    hi: float | None = None
+
+    def descriptor(self) -> ParameterDescriptor:
+        """The ROS parameter descriptor (type, description, range, read-only flag)."""
+        types = {bool: ParameterType.PARAMETER_BOOL, int: ParameterType.PARAMETER_INTEGER,
+                 float: ParameterType.PARAMETER_DOUBLE, str: ParameterType.PARAMETER_STRING}
+        d = ParameterDescriptor(name=self.name, type=types[type(self.default)],
+                                description=self.description, read_only=self.read_only)
+        if isinstance(self.default, float) and self.lo is not None:
+            d.floating_point_range = [FloatingPointRange(from_value=float(self.lo),
+                                                         to_value=float(self.hi), step=0.0)]
+        elif isinstance(self.default, int) and not isinstance(self.default, bool) \
+                and self.lo is not None:
+            d.integer_range = [IntegerRange(from_value=int(self.lo), to_value=int(self.hi),
+                                            step=1)]
+        return d
+
+
+#: Every parameter of the node, with its default (mirrored in ``config/sim_node.yaml``).
+PARAMETERS = (
+    ParamSpec("consist", "scenario_6",
+              "Consist YAML file, or a scenario of config/scenarios.yaml given as text "
+              "(scenario_6 or '6'; default: the paper's scenario 6)"),
+    ParamSpec("initial_speed_kmh", -1.0,
+              "Initial speed of every vehicle [km/h]; -1 = the scenario's speed "
+              "(a value is required when consist is a file)", lo=-1.0, hi=400.0),
+    ParamSpec("brake_params_file", "",
+              "Brake-parameter YAML file; empty = the shipped brake_params/paper.yaml"),
+    ParamSpec("coupler_lut_file", "",
+              "Coupler look-up-table YAML file; empty = the shipped couplers/buffer_hook_pugi.yaml"),
+    ParamSpec("chunk_s", 0.02,
+              "Simulated time advanced and published per chunk [s]", lo=0.001, hi=10.0),
+    ParamSpec("real_time_factor", 1.0,
+              "Simulated seconds per wall second: 1 = wall-clock pace, 2 = twice as fast, "
+              "0 = as fast as possible; not used in lock-step mode; changeable at run time",
+              read_only=False, lo=0.0, hi=MAX_REAL_TIME_FACTOR),
+    ParamSpec("lockstep", False,
+              "Advance only when ~/step is called (steps_per_call chunks per call)"),
+    ParamSpec("steps_per_call", 1,
+              "Chunks advanced and published per ~/step call", read_only=False, lo=1, hi=100_000),
+    ParamSpec("publish_clock", True,
+              "Publish /clock after every chunk, so controllers can use use_sim_time:=true"),
+    ParamSpec("auto_brake_at_s", -1.0,
+              "Apply the emergency brake by itself at the first chunk boundary at or after "
+              "this simulated time [s]; -1 = never", lo=-1.0, hi=1e6),
+    ParamSpec("max_sim_time_s", -1.0,
+              "Shut down cleanly once the simulated time reaches this [s]; -1 = run until "
+              "signalled", lo=-1.0, hi=1e7),
+)
+
+_TYPE_WORDS = {bool: "true or false", int: "a whole number", float: "a number with a decimal "
+               "point (e.g. 80.0)", str: "text (quote numbers, e.g. consist:=scenario_6)"}
+
+
+class StartupError(Exception):
+    """A parameter value the node cannot start with.
+
+    Parameters
+    ----------
+    parameter : str
+        Name of the offending parameter.
+    reason : str
+        What is wrong, in words a user can act on.
+    """
+
+    def __init__(self, parameter: str, reason: str):
+        self.parameter, self.reason = parameter, reason
+        super().__init__(f"parameter {parameter}: {reason}")
+
+
+@dataclass(frozen=True)
+class PlantInputs:
+    """Validated inputs the simulator is built from.
+
+    Attributes
+    ----------
+    consist : Consist
+    speed_kmh : float
+        Initial speed [km/h].
+    params : BrakeParams
+    lut : CouplerLUT
+    origin : str
+        Human description of where the consist came from (scenario or file).
+    """
+
+    consist: Consist
+    speed_kmh: float
+    params: BrakeParams
+    lut: CouplerLUT
+    origin: str
+
+
+def _looks_like_file(text: str) -> bool:
+    return text.lower().endswith((".yaml", ".yml")) or "/" in text \
+        or resolve_config_path(text).is_file()
+
+
+def load_plant_inputs(consist: str, initial_speed_kmh: float, brake_params_file: str = "",
+                      coupler_lut_file: str = "") -> PlantInputs:
+    """Resolve and validate the node's input parameters.
+
+    Parameters
+    ----------
+    consist : str
+        Consist YAML file, or scenario name/number (``scenario_6``, ``6``).
+    initial_speed_kmh : float
+        Initial speed [km/h]; negative takes the scenario's speed.
+    brake_params_file, coupler_lut_file : str
+        Files; empty strings take the shipped defaults.
+
+    Returns
+    -------
+    PlantInputs
+
+    Raises
+    ------
+    StartupError
+        Naming the parameter and the reason.
+    """
+    if not consist.strip():
+        raise StartupError("consist", "is empty: give a consist file or a scenario (e.g. "
+                           "scenario_6)")
+    try:
+        if _looks_like_file(consist):
+            train, speed, origin = load_consist(consist), None, f"file {consist}"
+        else:
+            scenario = get_scenario(consist)
+            train = scenario.consist()
+            speed, origin = scenario.speed_kmh, f"scenario {scenario.number}"
+    except InputError as exc:
+        raise StartupError("consist", exc.reason if exc.source == "scenario" else str(exc)) \
+            from None
+    if initial_speed_kmh >= 0.0:
+        speed = initial_speed_kmh
+    elif speed is None:
+        raise StartupError("initial_speed_kmh", "must be given (0 to 400 km/h) when consist is "
+                           "a file; -1 only means 'the scenario's speed'")
+    try:
+        params = load_brake_params(brake_params_file or None)
+    except InputError as exc:
+        raise StartupError("brake_params_file", str(exc)) from None
+    try:
+        lut = load_coupler_lut(coupler_lut_file or None)
+    except InputError as exc:
+        raise StartupError("coupler_lut_file", str(exc)) from None
+    return PlantInputs(train, float(speed), params, lut, origin)
+
+
+# --------------------------------------------------------------------------- messages
+
+
+def time_msg(time_ns: int) -> Time:
+    """``builtin_interfaces/Time`` for a simulated time in nanoseconds."""
+    return Time(sec=time_ns // 1_000_000_000, nanosec=time_ns % 1_000_000_000)
+
+
+def array_msg(label: str, values: np.ndarray) -> Float64MultiArray:
+    """A one-dimensional ``Float64MultiArray`` with a labelled layout.
+
+    Parameters
+    ----------
+    label : str
+        ``layout.dim[0].label`` (``vehicle`` or ``coupler``).
+    values : ndarray
+        The data (SI units).
+
+    Returns
+    -------
+    Float64MultiArray
+    """
+    n = int(values.size)
+    msg = Float64MultiArray()
+    msg.layout.dim = [MultiArrayDimension(label=label, size=n, stride=n)]
+    msg.layout.data_offset = 0
+    # an array('d') skips rclpy's per-element Python checks
+    msg.data = array.array("d", np.ascontiguousarray(values, dtype=np.float64).tobytes())
+    return msg
+
+
+# --------------------------------------------------------------------------- the node
+
+
+@dataclass
+class PacingStats:
+    """What pacing cost since start-up (read by diagnostics and the benchmark).
+
+    Attributes
+    ----------
+    chunks : int
+        Chunks advanced and published.
+    overruns : int
+        Times the plant was still busy when the next chunk was due (schedule restarted then).
+    lateness_s : deque of float
+        Publication time minus deadline of the most recent paced chunks [s].
+    """
+
+    chunks: int = 0
+    overruns: int = 0
+    lateness_s: deque = field(default_factory=lambda: deque(maxlen=LATENESS_SAMPLES))
+
+
+class _Job:
+    """Work for the plant thread; the executor thread may wait for its result."""
+
+    __slots__ = ("fn", "done", "result")
+
+    def __init__(self, fn: Callable[[], Any]):
+        self.fn, self.done, self.result = fn, threading.Event(), None
+
+
+Tap = Callable[[str, Any, int, bool], None]
+
+
+class SimNode(Node):
+    """The simulator as a ROS 2 plant (see the module docstring for the interface).
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ...).
+
+    Raises
+    ------
+    StartupError
+        A parameter value is unusable; the node is destroyed again.
+    """
+
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        try:
+            self._setup()
+        except BaseException:
+            self.destroy_node()
+            raise
+
+    # ------------------------------------------------------------------ set-up
+
+    def _setup(self) -> None:
+        p = self._declare_parameters()
+        self.inputs = load_plant_inputs(p["consist"], p["initial_speed_kmh"],
+                                        p["brake_params_file"], p["coupler_lut_file"])
+        self._sim = self._build_simulator(self.inputs, p["chunk_s"])
+        self._chunk_s = p["chunk_s"]
+        self._rtf = p["real_time_factor"]
+        self._lockstep = p["lockstep"]
+        self._steps_per_call = p["steps_per_call"]
+        self._auto_brake_at_s = p["auto_brake_at_s"]
+        self._max_sim_time_s = p["max_sim_time_s"]
+        self._init_plant_state()
+        self._create_interfaces(p["publish_clock"])
+        c = self.inputs.consist
+        mode = "lock-step" if self._lockstep else f"real_time_factor {self._rtf:g}"
+        self.get_logger().info(
+            f"{c.name}: {c.n} vehicles, {c.length_m:.0f} m, {c.mass_kg / 1e3:.0f} t "
+            f"({self.inputs.origin}) at {self.inputs.speed_kmh:g} km/h; chunk "
+            f"{self._chunk_s:g} s, {mode}")
+
+    @staticmethod
+    def _build_simulator(inputs: PlantInputs, chunk_s: float) -> Simulator:
+        try:
+            sim = Simulator(inputs.consist, inputs.speed_kmh, inputs.params, inputs.lut)
+        except InputError as exc:
+            name = "initial_speed_kmh" if exc.source == "speed_kmh" else "consist"
+            raise StartupError(name, str(exc)) from None
+        # load the compiled kernel now rather than late for the first deadline
+        try:
+            sim.advance(chunk_s)
+        except SimulationError:
+            pass  # the run meets it again and reports it
+        sim.reset()
+        return sim
+
+    def _init_plant_state(self) -> None:
+        self.stats = PacingStats()
+        #: Set when the node should shut down (max_sim_time_s reached, or the plant thread died).
+        self.finished = threading.Event()
+        #: Exit status for ``main``: 1 once the plant thread died of an unexpected error.
+        self.exit_status = 0
+        self._taps: list[Tap] = []
+        self._jobs: queue.SimpleQueue[_Job] = queue.SimpleQueue()
+        self._wake = threading.Event()
+        self._quit = threading.Event()
+        self._thread = threading.Thread(target=self._plant_loop, name="plant", daemon=True)
+        self._emergency = False
+        self._auto_brake_done = False
+        self._lut_warned = False
+        self._paused = False
+        self._failure: str | None = None
+        self._stamp_ns = 0
+        self._origin_wall = time.monotonic()
+        self._next_index = 1
+        self._next_diag_wall = 0.0
+        self._diag_wall, self._diag_sim_s, self._diag_overruns = time.monotonic(), 0.0, 0
+
+    def _create_interfaces(self, publish_clock: bool) -> None:
+        self._outputs = {topic: self.create_publisher(Float64MultiArray, topic, STATE_QOS)
+                         for topic, _, _ in ARRAY_TOPICS}
+        if publish_clock:
+            self._outputs[CLOCK_TOPIC] = self.create_publisher(Clock, CLOCK_TOPIC, CLOCK_QOS)
+        self._outputs[DIAGNOSTICS_TOPIC] = self.create_publisher(
+            DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
+        # further input topics: a handler here and a subscription below
+        self._input_handlers = {BRAKE_COMMAND_TOPIC: self._apply_brake_command}
+        self._input_subscriptions = {BRAKE_COMMAND_TOPIC: self.create_subscription(
+            Bool, BRAKE_COMMAND_TOPIC, self._receiver(BRAKE_COMMAND_TOPIC), COMMAND_QOS)}
+        self.create_service(Trigger, "~/reset", self._srv_reset)
+        self.create_service(SetBool, "~/pause", self._srv_pause)
+        self.create_service(Trigger, "~/step", self._srv_step)
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+
+    def _declare_parameters(self) -> dict[str, Any]:
+        values = {}
+        for spec in PARAMETERS:
+            try:
+                values[spec.name] = self.declare_parameter(
+                    spec.name, spec.default, spec.descriptor()).value
+            except InvalidParameterTypeException:
+                raise StartupError(spec.name, f"wrong type, expected "
+                                   f"{_TYPE_WORDS[type(spec.default)]}") from None
+            except ParameterException as exc:
+                reason = str(exc).split("Reason: ", 1)[-1].removesuffix(f": {spec.name}")
+                raise StartupError(spec.name, reason) from None
+        return values
+
+    def _receiver(self, topic: str) -> Callable[[Any], None]:
+        def receive(msg):
+            self._submit(lambda: self._on_input(topic, msg))
+        return receive
+
+    # ------------------------------------------------------------------ public API
+
+    def add_tap(self, tap: Tap) -> None:
+        """Observe every message the node publishes or receives.
+
+        Parameters
+        ----------
+        tap : callable
+            Called on the plant thread as ``tap(topic, msg, sim_time_ns, inbound)`` with the
+            fully qualified topic name, the message, the simulated time [ns] it belongs to and
+            whether it was received (True) or published (False).
+        """
+        self._taps.append(tap)
+
+    def start(self) -> None:
+        """Start the plant thread (publishes the initial state, then runs)."""
+        self._thread.start()
+
+    def close(self) -> None:
+        """Stop the plant thread and destroy the node."""
+        self._quit.set()
+        self._wake.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=10.0)
+        self.destroy_node()
+
+    @property
+    def sim_time_s(self) -> float:
+        """Simulated time of the last published state [s]."""
+        return self._stamp_ns / 1e9
+
+    @property
+    def failure(self) -> str | None:
+        """Why the simulator stopped advancing (None while it works; ``~/reset`` clears it)."""
+        return self._failure
+
+    # ------------------------------------------------------------------ the one way out and in
+
+    def _emit(self, topic: str, msg: Any) -> None:
+        """Publish ``msg`` on ``topic`` (a key of ``self._outputs``) and show it to taps."""
+        publisher = self._outputs[topic]
+        publisher.publish(msg)
+        for tap in self._taps:
+            tap(publisher.topic_name, msg, self._stamp_ns, False)
+
+    def _on_input(self, topic: str, msg: Any) -> None:
+        """Handle a received (or self-issued) input message on the plant thread."""
+        name = self._input_subscriptions[topic].topic_name
+        for tap in self._taps:
+            tap(name, msg, self._stamp_ns, True)
+        self._input_handlers[topic](msg)
+
+    def _apply_brake_command(self, msg: Bool) -> None:
+        # held until changed; the simulator ignores a repeated true
+        self._emergency = bool(msg.data)
+
+    # ------------------------------------------------------------------ plant thread
+
+    def _submit(self, fn: Callable[[], Any]) -> _Job:
+        job = _Job(fn)
+        self._jobs.put(job)
+        self._wake.set()
+        return job
+
+    def _call_in_plant(self, fn: Callable[[], tuple[bool, str]]) -> tuple[bool, str]:
+        job = self._submit(fn)
+        while not job.done.wait(0.5):
+            if not self._thread.is_alive():
+                return False, "the plant is not running (shutting down)"
+        return job.result
+
+    def _run_jobs(self) -> None:
+        while True:
+            try:
+                job = self._jobs.get_nowait()
+            except queue.Empty:
+                return
+            try:
+                job.result = job.fn()
+            except Exception as exc:  # noqa: BLE001 - a bad job must not stop the plant
+                if self.context.ok():  # else: shutting down, publishers are gone
+                    self.get_logger().error(f"{type(exc).__name__}: {exc}")
+                job.result = (False, f"{type(exc).__name__}: {exc}")
+            finally:
+                job.done.set()
+
+    def _free_running(self) -> bool:
+        return not (self._lockstep or self._paused or self._failure or self.finished.is_set())
+
+    def _period_s(self) -> float:
+        return self._chunk_s / self._rtf if self._rtf > 0.0 else 0.0
+
+    def _due(self) -> float:
+        """Wall deadline of the next chunk (monotonic clock) [s]."""
+        return self._origin_wall + self._next_index * self._period_s()
+
+    def _restart_schedule(self, now: float, first_due_now: bool = False) -> None:
+        # the next chunk is due one period from now (or at once), later ones follow at the period
+        self._origin_wall = now
+        self._next_index = 0 if first_due_now else 1
+
+    def _plant_loop(self) -> None:
+        try:
+            now = time.monotonic()
+            self._publish_state(self._sim.snapshot())
+            self._restart_schedule(now)
+            self._diag_wall, self._next_diag_wall = now, now + DIAGNOSTICS_PERIOD_S
+            while not self._quit.is_set():
+                self._wake.clear()
+                self._run_jobs()
+                now = self._maybe_diagnostics()
+                timeout = self._next_diag_wall - now
+                if self._free_running():
+                    due = self._due()
+                    if due <= now:
+                        self._paced_chunk(due)
+                        continue
+                    timeout = min(timeout, due - now)
+                self._wake.wait(max(timeout, 0.0))
+        except Exception as exc:  # noqa: BLE001
+            if self.context.ok() and not self._quit.is_set():
+                self.get_logger().fatal(f"plant thread stopped: {type(exc).__name__}: {exc}")
+                self.exit_status = 1
+                self.finished.set()
+            # else: the context was shut down under us (SIGINT/SIGTERM); main cleans up
+
+    def _paced_chunk(self, due: float) -> None:
+        self._run_chunk()
+        if self._rtf <= 0.0:
+            time.sleep(0)  # let the executor thread take the GIL between chunks
+            return
+        done = time.monotonic()
+        self.stats.lateness_s.append(done - due)
+        self._next_index += 1
+        if done > self._due():
+            # behind schedule: count it and restart the schedule instead of catching up
+            self.stats.overruns += 1
+            self._restart_schedule(done, first_due_now=True)
+
+    def _run_chunk(self) -> bool:
+        """Advance one chunk and publish the state; False if the simulator failed."""
+        sim = self._sim
+        if 0.0 <= self._auto_brake_at_s <= sim.time_s + TIME_EPS_S and not self._auto_brake_done:
+            self._auto_brake_done = True
+            self._on_input(BRAKE_COMMAND_TOPIC, Bool(data=True))
+        try:
+            snap = sim.advance(self._chunk_s, Commands(emergency=self._emergency))
+        except SimulationError as exc:
+            self._fail(str(exc))
+            return False
+        except Exception as exc:  # noqa: BLE001 - any simulator fault stops the plant, not the node
+            self._fail(f"{type(exc).__name__}: {exc}")
+            return False
+        self.stats.chunks += 1
+        self._publish_state(snap)
+        log = self.get_logger()
+        for event in snap.events:
+            if event.kind != "coupler_out_of_lut":
+                log.info(event.describe())
+            elif self._lut_warned:
+                log.debug(event.describe())
+            else:
+                # long trains push dozens of couplers past the table: warn once per run
+                self._lut_warned = True
+                log.warn(f"{event.describe()}; further couplers are logged at debug level and "
+                         "counted in diagnostics")
+        if 0.0 <= self._max_sim_time_s <= snap.time_s + TIME_EPS_S:
+            log.info(f"max_sim_time_s = {self._max_sim_time_s:g} s reached; shutting down")
+            self.finished.set()
+        return True
+
+    def _publish_state(self, snap: Snapshot) -> None:
+        self._stamp_ns = round(snap.time_s * 1e9)
+        for topic, attribute, label in ARRAY_TOPICS:
+            self._emit(topic, array_msg(label, getattr(snap, attribute)))
+        if CLOCK_TOPIC in self._outputs:
+            self._emit(CLOCK_TOPIC, Clock(clock=time_msg(self._stamp_ns)))
+
+    def _fail(self, reason: str) -> None:
+        self._failure = reason
+        self.get_logger().error(f"simulation failed at t = {self._sim.time_s:.3f} s: {reason}; "
+                                "the plant stopped advancing, call ~/reset to recover")
+        self._publish_diagnostics(time.monotonic())
+
+    # ------------------------------------------------------------------ diagnostics
+
+    def _maybe_diagnostics(self) -> float:
+        now = time.monotonic()
+        if now >= self._next_diag_wall:
+            self._publish_diagnostics(now)
+        return now
+
+    def _publish_diagnostics(self, now: float) -> None:
+        sim, stats = self._sim, self.stats
+        wall = now - self._diag_wall
+        achieved = (sim.time_s - self._diag_sim_s) / wall if wall > 0.0 else 0.0
+        overruns = stats.overruns - self._diag_overruns
+        self._diag_wall, self._diag_sim_s, self._diag_overruns = now, sim.time_s, stats.overruns
+        self._next_diag_wall = now + DIAGNOSTICS_PERIOD_S
+
+        if self._failure:
+            level, state, message = DiagnosticStatus.ERROR, "failed", self._failure
+        elif self.finished.is_set():
+            level, state, message = DiagnosticStatus.OK, "finished", "max_sim_time_s reached"
+        else:
+            state = "lockstep" if self._lockstep else "paused" if self._paused else "running"
+            level, message = DiagnosticStatus.OK, state
+            if overruns:
+                level, message = DiagnosticStatus.WARN, \
+                    f"{overruns} chunk overrun(s) in the last {wall:.1f} s"
+        draft, buff = sim.peak_draft_N, sim.peak_buff_N
+        values = {
+            "state": state,
+            "sim_time_s": f"{sim.time_s:.3f}",
+            "real_time_factor": f"{self._rtf:g}",
+            "achieved_real_time_factor": f"{achieved:.3f}",
+            "chunks": str(stats.chunks),
+            "chunk_overruns": str(stats.overruns),
+            "emergency_command": "true" if self._emergency else "false",
+            "brake_command_time_s": "none" if sim.command_time_s is None
+            else f"{sim.command_time_s:.3f}",
+            "head_speed_kmh": f"{float(sim.snapshot().speed_m_s[0]) * 3.6:.3f}",
+            "peak_draft_kN": f"{float(draft.max(initial=0.0)) / 1e3:.3f}",
+            "peak_draft_coupler": str(int(np.argmax(draft)) + 1 if draft.size else 0),
+            "peak_buff_kN": f"{float(buff.min(initial=0.0)) / 1e3:.3f}",
+            "peak_buff_coupler": str(int(np.argmin(buff)) + 1 if buff.size else 0),
+            "couplers_beyond_lut": str(int(np.count_nonzero(sim.lut_excursion_m))),
+        }
+        if sim.stopping_distance_m is not None:
+            values["stopping_distance_m"] = f"{sim.stopping_distance_m:.3f}"
+            values["stop_time_s"] = f"{sim.stop_time_s - (sim.command_time_s or 0.0):.3f}"
+        if self._failure:
+            values["error"] = self._failure
+        status = DiagnosticStatus(
+            level=level, name=f"{self.get_fully_qualified_name()}: train plant", message=message,
+            hardware_id=self.inputs.consist.name,
+            values=[KeyValue(key=k, value=v) for k, v in values.items()])
+        diag = DiagnosticArray(status=[status])
+        diag.header.stamp = time_msg(self._stamp_ns)
+        self._emit(DIAGNOSTICS_TOPIC, diag)
+
+    # ------------------------------------------------------------------ services
+
+    def _srv_reset(self, request: Trigger.Request, response: Trigger.Response):
+        response.success, response.message = self._call_in_plant(self._reset)
+        return response
+
+    def _srv_pause(self, request: SetBool.Request, response: SetBool.Response):
+        response.success, response.message = self._call_in_plant(
+            lambda: self._pause(bool(request.data)))
+        return response
+
+    def _srv_step(self, request: Trigger.Request, response: Trigger.Response):
+        chunks = self._steps_per_call
+        response.success, response.message = self._call_in_plant(lambda: self._step(chunks))
+        return response
+
+    def _reset(self) -> tuple[bool, str]:
+        snap = self._sim.reset()
+        self._emergency = False
+        self._auto_brake_done = False
+        self._lut_warned = False
+        self._failure = None
+        self._publish_state(snap)
+        now = time.monotonic()
+        self._restart_schedule(now)
+        self._diag_wall, self._diag_sim_s = now, 0.0
+        self.get_logger().info("reset: initial state, brake released, t = 0 s")
+        return True, "reset to the initial state (brake released, t = 0 s)"
+
+    def _pause(self, pause: bool) -> tuple[bool, str]:
+        if self._paused and not pause:
+            self._restart_schedule(time.monotonic())
+        self._paused = pause
+        text = f"{'paused' if pause else 'running'} at t = {self._sim.time_s:.3f} s"
+        if self._lockstep:
+            text += " (lock-step mode: the plant advances only on ~/step)"
+        return True, text
+
+    def _step(self, chunks: int) -> tuple[bool, str]:
+        if not (self._lockstep or self._paused):
+            return False, "the plant is free-running: pause it (~/pause) or start it with " \
+                          "lockstep:=true to step it"
+        if self._failure:
+            return False, f"simulation failed: {self._failure}; call ~/reset"
+        if self.finished.is_set():
+            return False, "max_sim_time_s reached; the node is shutting down"
+        done = 0
+        while done < chunks and not self.finished.is_set():
+            if not self._run_chunk():
+                return False, f"simulation failed: {self._failure}; call ~/reset"
+            done += 1
+            self._maybe_diagnostics()
+        return True, f"advanced {done} chunk(s) to t = {self._sim.time_s:.3f} s"
+
+    # ------------------------------------------------------------------ parameters
+
+    def _validate_parameters(self, params) -> SetParametersResult:
+        for p in params:
+            if p.name == "real_time_factor":
+                v = p.value
+                if not (isinstance(v, float) and math.isfinite(v)
+                        and 0.0 <= v <= MAX_REAL_TIME_FACTOR):
+                    return SetParametersResult(
+                        successful=False,
+                        reason=f"real_time_factor must be a number from 0 (as fast as possible) "
+                               f"to {MAX_REAL_TIME_FACTOR:g}, got {v!r}; keeping {self._rtf:g}")
+            elif p.name == "steps_per_call" and not (isinstance(p.value, int) and p.value >= 1):
+                return SetParametersResult(
+                    successful=False,
+                    reason=f"steps_per_call must be a whole number >= 1, got {p.value!r}")
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, params) -> None:
+        for p in params:
+            if p.name == "real_time_factor":
+                self._submit(lambda value=p.value: self._set_real_time_factor(value))
+            elif p.name == "steps_per_call":
+                self._steps_per_call = p.value
+
+    def _set_real_time_factor(self, value: float) -> None:
+        self._rtf = float(value)
+        self._restart_schedule(time.monotonic())
+        self.get_logger().info(f"real_time_factor set to {value:g}")
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node until SIGINT/SIGTERM or ``max_sim_time_s``.
+
+    Parameters
+    ----------
+    args : list of str, optional
+        Command-line arguments (default: ``sys.argv``), e.g. ``--ros-args -p chunk_s:=0.05``.
+
+    Returns
+    -------
+    int
+        Exit status: 0 after a clean shutdown, 1 when a parameter value is unusable or the
+        plant thread died of an unexpected error.
+    """
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = SimNode()
+        node.start()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while rclpy.ok() and not node.finished.is_set():
+            executor.spin_once(timeout_sec=0.2)
+        return node.exit_status
+    except StartupError as exc:
+        rclpy.logging.get_logger(NODE_NAME).fatal(f"cannot start: {exc}")
+        return 1
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0
+    finally:
+        if node is not None:
+            node.close()
+            rclpy.logging.get_logger(NODE_NAME).info(
+                f"stopped at t = {node.sim_time_s:.3f} s after {node.stats.chunks} chunks")
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

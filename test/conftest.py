@@ -1,0 +1,244 @@
+"""Shared test set-up: ROS 2 isolation, a test-side ROS probe and child-process hygiene.
+
+Every session gets its own DDS domain (random ``ROS_DOMAIN_ID`` in 1..100) with discovery limited
+to this machine, so two test runs on one host never hear each other. Child processes inherit that
+environment. Every process started through :class:`ProcessGroup` runs in its own session and is
+killed (whole process group) when the test ends, pass or fail.
+"""
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import pytest
+
+#: Console scripts of the package (the venv's ``bin``, where ``pip install -e`` put them).
+BIN_DIR = Path(sys.executable).parent
+
+
+def pytest_configure(config):
+    """Isolate the session's DDS traffic before anything initialises ROS."""
+    os.environ["ROS_DOMAIN_ID"] = str(random.SystemRandom().randint(1, 100))
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    for name in ("ROS_STATIC_PEERS", "ROS_LOCALHOST_ONLY", "ROS_DISCOVERY_SERVER"):
+        os.environ.pop(name, None)
+
+
+def executable(name: str) -> str:
+    """Path of an installed console script (``sim_node``, ``ltd-brake``, ...)."""
+    path = BIN_DIR / name
+    if not path.exists():
+        pytest.skip(f"{name} is not installed in {BIN_DIR} (run ./dev.sh setup)")
+    return str(path)
+
+
+# --------------------------------------------------------------------------- child processes
+
+
+class NodeProcess:
+    """A child process in its own session, output captured to a file.
+
+    Parameters
+    ----------
+    argv : list of str
+        Command line.
+    log_path : pathlib.Path
+        File receiving stdout and stderr.
+    env : dict, optional
+        Environment (default: this process's).
+    """
+
+    def __init__(self, argv: list[str], log_path: Path, env: dict | None = None):
+        self.argv, self.log_path = argv, log_path
+        self._log = open(log_path, "wb")
+        # own session: the process group can be killed as a whole; the ROS wheels re-exec the
+        # interpreter with execve, so the pid stays the node's pid
+        self.popen = subprocess.Popen(argv, stdout=self._log, stderr=subprocess.STDOUT,
+                                      stdin=subprocess.DEVNULL, env=env, start_new_session=True)
+
+    @property
+    def pid(self) -> int:
+        """Process id."""
+        return self.popen.pid
+
+    def output(self) -> str:
+        """Everything the process wrote so far."""
+        self._log.flush()
+        return self.log_path.read_text(errors="replace")
+
+    def wait(self, timeout_s: float = 60.0) -> int:
+        """Wait for exit; kill and fail the test if it takes longer than ``timeout_s``."""
+        try:
+            return self.popen.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            self.kill()
+            pytest.fail(f"{self.argv[0]} did not exit within {timeout_s:g} s:\n{self.output()}")
+
+    def stop(self, sig: int = signal.SIGINT, timeout_s: float = 20.0) -> int:
+        """Send ``sig`` to the process and return its exit status."""
+        if self.popen.poll() is None:
+            os.kill(self.pid, sig)
+        return self.wait(timeout_s)
+
+    def kill(self) -> None:
+        """SIGKILL the whole process group (idempotent)."""
+        if self.popen.poll() is None:
+            try:
+                os.killpg(self.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            self.popen.wait(timeout=10)
+        self._log.close()
+
+
+class ProcessGroup:
+    """Starts child processes and kills every one of them on :meth:`close`."""
+
+    def __init__(self, log_dir: Path):
+        self.log_dir = log_dir
+        self.processes: list[NodeProcess] = []
+
+    def start(self, *argv: str, env: dict | None = None, name: str | None = None) -> NodeProcess:
+        """Start ``argv`` with output to ``<log_dir>/<name>.log``."""
+        name = name or f"{Path(argv[0]).name}-{len(self.processes)}"
+        proc = NodeProcess(list(argv), self.log_dir / f"{name}.log", env)
+        self.processes.append(proc)
+        return proc
+
+    def close(self) -> None:
+        """Kill every process still running."""
+        for proc in self.processes:
+            proc.kill()
+
+
+@pytest.fixture
+def processes(tmp_path):
+    """A :class:`ProcessGroup` whose processes are killed when the test ends."""
+    group = ProcessGroup(tmp_path)
+    try:
+        yield group
+    finally:
+        group.close()
+
+
+# --------------------------------------------------------------------------- ROS probe
+
+
+@pytest.fixture(scope="session")
+def ros_context():
+    """An initialised rclpy context for the test process (no signal handlers installed)."""
+    rclpy = pytest.importorskip("rclpy")
+    from rclpy.context import Context
+    from rclpy.signals import SignalHandlerOptions
+
+    context = Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    yield context
+    rclpy.try_shutdown(context=context)
+
+
+class RosProbe:
+    """A test-side node: collects messages, publishes, calls services and sets parameters.
+
+    Parameters
+    ----------
+    context : rclpy.context.Context
+    name : str, optional
+        Base name of the node.
+    """
+
+    _count = 0
+
+    def __init__(self, context, name: str = "probe"):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+
+        RosProbe._count += 1
+        self.node = rclpy.create_node(f"{name}_{os.getpid()}_{RosProbe._count}",
+                                      context=context)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        #: topic -> list of received messages (or bytes for raw subscriptions), in order
+        self.received: dict[str, list] = defaultdict(list)
+        self._clients: dict[str, object] = {}
+        self._publishers: dict[str, object] = {}
+
+    def subscribe(self, topic: str, msg_type, raw: bool = False, depth: int = 1000) -> None:
+        """Collect every message on ``topic`` into ``received[topic]`` (reliable reader)."""
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+        qos = QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
+        self.node.create_subscription(msg_type, topic, self.received[topic].append, qos,
+                                      raw=raw)
+
+    def spin_for(self, seconds: float) -> None:
+        """Process callbacks for ``seconds`` of wall time."""
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.02)
+
+    def spin_until(self, predicate, timeout_s: float, what: str) -> None:
+        """Process callbacks until ``predicate()`` is true; fail naming ``what`` on timeout."""
+        end = time.monotonic() + timeout_s
+        while not predicate():
+            if time.monotonic() > end:
+                pytest.fail(f"timed out after {timeout_s:g} s waiting for {what}")
+            self.executor.spin_once(timeout_sec=0.02)
+
+    def publish(self, topic: str, msg, timeout_s: float = 20.0) -> None:
+        """Publish ``msg`` once a subscriber has matched (reliable, depth 10)."""
+        if topic not in self._publishers:
+            self._publishers[topic] = self.node.create_publisher(type(msg), topic, 10)
+        pub = self._publishers[topic]
+        self.spin_until(lambda: pub.get_subscription_count() > 0, timeout_s,
+                        f"a subscriber on {topic}")
+        pub.publish(msg)
+
+    def call(self, srv_type, name: str, request, timeout_s: float = 30.0):
+        """Call a service and return its response."""
+        if name not in self._clients:
+            self._clients[name] = self.node.create_client(srv_type, name)
+        client = self._clients[name]
+        self.spin_until(client.service_is_ready, timeout_s, f"service {name}")
+        future = client.call_async(request)
+        self.spin_until(future.done, timeout_s, f"the response of {name}")
+        return future.result()
+
+    def set_parameters(self, node: str, **values):
+        """Set parameters of ``node`` one by one; returns the list of SetParametersResult."""
+        from rcl_interfaces.srv import SetParameters
+        from rclpy.parameter import Parameter
+
+        request = SetParameters.Request(
+            parameters=[Parameter(k, value=v).to_parameter_msg() for k, v in values.items()])
+        return self.call(SetParameters, f"{node}/set_parameters", request).results
+
+    def get_parameters(self, node: str, *names: str) -> list:
+        """Current values of parameters of ``node``."""
+        from rcl_interfaces.srv import GetParameters
+        from rclpy.parameter import parameter_value_to_python
+
+        response = self.call(GetParameters, f"{node}/get_parameters",
+                             GetParameters.Request(names=list(names)))
+        return [parameter_value_to_python(v) for v in response.values]
+
+    def close(self) -> None:
+        """Destroy the node and its executor."""
+        self.executor.shutdown()
+        self.node.destroy_node()
+
+
+@pytest.fixture
+def probe(ros_context):
+    """A :class:`RosProbe`, destroyed when the test ends."""
+    p = RosProbe(ros_context)
+    try:
+        yield p
+    finally:
+        p.close()

@@ -1,0 +1,395 @@
+"""sim_node as a ROS 2 plant: interface, pacing modes, services, parameters, packaging.
+
+The node runs as a separate process (the installed ``sim_node`` executable) in the session's
+private DDS domain, except for the fault-injection test, which needs the node in-process. The
+physics numbers themselves are pinned by the physics tests; here the node must only reproduce the
+offline run of the same simulator.
+"""
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import RosProbe, executable
+
+pytestmark = pytest.mark.ros
+
+rclpy = pytest.importorskip("rclpy")
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.serialization import deserialize_message  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from std_msgs.msg import Bool, Float64MultiArray  # noqa: E402
+from std_srvs.srv import SetBool, Trigger  # noqa: E402
+
+from ltd_brake_ros import runs  # noqa: E402
+from ltd_brake_ros.inputs import get_scenario  # noqa: E402
+from ltd_brake_ros.simulator import SimulationError, Simulator  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+ARRAYS = {"vehicles/speed": "vehicle", "vehicles/position": "vehicle",
+          "vehicles/brake_force": "vehicle", "couplers/force": "coupler"}
+
+
+def start_node(processes, ns: str, *params: str, name: str | None = None,
+               ros_args: tuple[str, ...] = ()):
+    """Start the installed sim_node in namespace ``ns`` with its /clock moved under ``ns``."""
+    argv = [executable("sim_node"), "--ros-args", *ros_args, "-r", f"__ns:={ns}",
+            "-r", f"/clock:={ns}/clock"]
+    for p in params:
+        argv += ["-p", p]
+    return processes.start(*argv, name=name or ns.strip("/"))
+
+
+def diagnostics(probe: RosProbe, node: str) -> dict[str, str]:
+    """Key/values of the latest diagnostics status of ``node`` ({} if none yet)."""
+    for array in reversed(probe.received["/diagnostics"]):
+        for status in array.status:
+            if status.name == f"{node}: train plant":
+                return {kv.key: kv.value for kv in status.values} | {"_level": status.level}
+    return {}
+
+
+def clock_s(msg: Clock) -> float:
+    return msg.clock.sec + msg.clock.nanosec * 1e-9
+
+
+def assert_clean_exit(proc, sig) -> str:
+    status = proc.stop(sig)
+    out = proc.output()
+    assert status == 0, f"exit status {status} after {signal.Signals(sig).name}:\n{out}"
+    assert "Traceback" not in out, out
+    return out
+
+
+# --------------------------------------------------------------------------- free-running plant
+
+
+def test_live_plant_stops_like_the_offline_simulator(processes, probe):
+    ns, node = "/free", "/free/sim_node"
+    scenario = get_scenario(6)
+    consist = scenario.consist()
+    n = consist.n
+    spawned = time.monotonic()
+    proc = start_node(processes, ns, "real_time_factor:=1.0")
+    # at real_time_factor 0 the probe cannot take every message: a short reader queue keeps
+    # what it reads close to the newest state
+    for topic in ARRAYS:
+        probe.subscribe(f"{ns}/{topic}", Float64MultiArray, depth=10)
+    probe.subscribe(f"{ns}/clock", Clock, depth=10)
+    probe.subscribe("/diagnostics", DiagnosticArray)
+    got = probe.received
+    clocks, positions = got[f"{ns}/clock"], got[f"{ns}/vehicles/position"]
+    probe.spin_until(lambda: clocks, 60, f"{ns}/clock from the running node")
+    probe.spin_for(0.5)
+    # paced at real_time_factor 1: simulated time never runs ahead of the wall clock
+    assert 0.0 < clock_s(clocks[-1]) <= time.monotonic() - spawned
+
+    # pause, then reset: the node publishes the initial state once
+    assert probe.call(SetBool, f"{node}/pause", SetBool.Request(data=True)).success
+    reply = probe.call(Trigger, f"{node}/reset", Trigger.Request())
+    assert reply.success, reply.message
+    initial = Simulator(consist, scenario.speed_kmh).snapshot()
+    probe.spin_until(lambda: positions and np.array_equal(positions[-1].data, initial.position_m)
+                     and clock_s(clocks[-1]) == 0.0, 20, "the reset state")
+    speeds = got[f"{ns}/vehicles/speed"]
+    probe.spin_until(lambda: speeds and np.array_equal(speeds[-1].data, initial.speed_m_s), 20,
+                     "the reset speeds")
+    assert not np.any(got[f"{ns}/couplers/force"][-1].data)
+    assert not np.any(got[f"{ns}/vehicles/brake_force"][-1].data)
+    first = {topic: len(got[f"{ns}/{topic}"]) - 1 for topic in ARRAYS}
+    first_clock = len(clocks) - 1
+
+    # the emergency command is taken while paused and applied at t = 0 of the next chunk
+    probe.publish(f"{ns}/brake_command", Bool(data=True))
+    probe.spin_until(lambda: diagnostics(probe, node).get("emergency_command") == "true", 20,
+                     "diagnostics to report the emergency command")
+
+    # run-time parameters: bad values are rejected with a reason, the old value stays
+    bad_rtf, = probe.set_parameters(node, real_time_factor=-1.0)
+    assert not bad_rtf.successful and "real_time_factor" in bad_rtf.reason
+    nan_rtf, = probe.set_parameters(node, real_time_factor=math.nan)
+    assert not nan_rtf.successful and "real_time_factor" in nan_rtf.reason
+    chunk, = probe.set_parameters(node, chunk_s=0.05)
+    assert not chunk.successful and "read-only" in chunk.reason
+    chunk, = probe.set_parameters(node, chunk_s=-0.02)
+    assert not chunk.successful and "chunk_s" in chunk.reason
+    assert probe.get_parameters(node, "real_time_factor", "chunk_s") == [1.0, 0.02]
+    fast, = probe.set_parameters(node, real_time_factor=0.0)
+    assert fast.successful, fast.reason
+    assert probe.get_parameters(node, "real_time_factor") == [0.0]
+
+    assert probe.call(SetBool, f"{node}/pause", SetBool.Request(data=False)).success
+    reply = probe.call(Trigger, f"{node}/step", Trigger.Request())
+    assert not reply.success and "free-running" in reply.message  # refused, not queued
+    probe.spin_until(lambda: "stopping_distance_m" in diagnostics(probe, node), 120,
+                     "the train to stop")
+    # the plant keeps publishing (a steady standstill) after the stop
+    stop_clock = clock_s(clocks[-1])
+    probe.spin_until(lambda: clock_s(clocks[-1]) > stop_clock + 2.0, 30,
+                     "/clock to keep advancing after the stop")
+    # pause, then drain what is still queued: the last message of each topic is the final state
+    reply = probe.call(SetBool, f"{node}/pause", SetBool.Request(data=True))
+    paused_at_s = float(reply.message.split("t = ")[1].split()[0])
+    probe.spin_until(lambda: abs(clock_s(clocks[-1]) - paused_at_s) < 1e-3, 20,
+                     "the last /clock before the pause")
+    probe.spin_for(0.5)
+
+    # observed stopping distance = head position at standstill - head position at the command
+    observed_m = positions[-1].data[0] - initial.position_m[0]
+    reference = runs.emergency_stop(consist, scenario.speed_kmh)
+    assert observed_m == pytest.approx(reference.stopping_distance_m, rel=0.005)
+    assert observed_m == pytest.approx(float(diagnostics(probe, node)["stopping_distance_m"]),
+                                       abs=0.01)
+    assert np.all(np.abs(speeds[-1].data) < 1e-2)
+
+    # layout, lengths and sign conventions of everything published since the reset
+    for topic, label in ARRAYS.items():
+        msgs = got[f"{ns}/{topic}"][first[topic]:]
+        assert len(msgs) > 10, topic
+        size = n - 1 if label == "coupler" else n
+        for msg in msgs:
+            assert len(msg.layout.dim) == 1 and msg.layout.data_offset == 0
+            dim = msg.layout.dim[0]
+            assert (dim.label, dim.size, dim.stride, len(msg.data)) == (label, size, size, size)
+    data = {topic: np.array([m.data for m in got[f"{ns}/{topic}"][first[topic]:]])
+            for topic in ARRAYS}
+    speed = data["vehicles/speed"]  # forward positive: from +v0 down to standstill
+    assert speed[0] == pytest.approx(np.full(n, scenario.speed_kmh / 3.6))
+    assert np.all(np.abs(speed[-1]) < 1e-2)
+    assert data["vehicles/position"][-1, 0] > data["vehicles/position"][0, 0]
+    assert data["vehicles/brake_force"].min() >= 0.0  # retarding force positive
+    assert data["vehicles/brake_force"].max() > 0.0
+    forces = data["couplers/force"]
+    assert forces.max() > 0.0 and forces.min() < 0.0  # draft positive, buff negative both seen
+    times = [clock_s(c) for c in clocks[first_clock:]]
+    assert times[0] == 0.0 and all(b > a for a, b in zip(times, times[1:])), "non-monotone clock"
+    diag = diagnostics(probe, node)
+    for key in ("achieved_real_time_factor", "chunk_overruns", "head_speed_kmh",
+                "peak_draft_kN", "peak_buff_kN", "stop_time_s"):
+        assert key in diag, key
+    assert diag["_level"] in (DiagnosticStatus.OK, DiagnosticStatus.WARN)
+
+    out = assert_clean_exit(proc, signal.SIGINT)
+    assert out.count("train stopped") == 1, out  # the stopping distance is logged once
+
+
+# --------------------------------------------------------------------------- lock-step
+
+
+def test_lockstep_runs_are_bit_identical_and_reset_restores_the_start(processes, probe):
+    chunks_per_call, calls = 5, 20
+    params = ("lockstep:=true", f"steps_per_call:={chunks_per_call}", "auto_brake_at_s:=0.5",
+              "real_time_factor:=1.0")
+    runs_ns = ("/step_a", "/step_b")
+    procs = [start_node(processes, ns, *params) for ns in runs_ns]
+    topics = [f"{ns}/{t}" for ns in runs_ns for t in ARRAYS]
+    for topic in topics:
+        probe.subscribe(topic, Float64MultiArray, raw=True)
+    for ns in runs_ns:
+        probe.subscribe(f"{ns}/clock", Clock)
+    got = probe.received
+
+    def reset(ns):
+        # the reset state arrives on every topic once all readers are matched
+        for _ in range(5):
+            counts = {t: len(got[f"{ns}/{t}"]) for t in ARRAYS}
+            assert probe.call(Trigger, f"{ns}/sim_node/reset", Trigger.Request()).success
+            try:
+                probe.spin_until(lambda: all(len(got[f"{ns}/{t}"]) > counts[t] for t in ARRAYS),
+                                 3, "the reset state")
+                return {t: got[f"{ns}/{t}"][-1] for t in ARRAYS}
+            except pytest.fail.Exception:
+                continue
+        pytest.fail(f"{ns}: the reset state never arrived")
+
+    def run(ns):
+        start = {t: len(got[f"{ns}/{t}"]) for t in ARRAYS}
+        final_clocks = []
+        for k in range(1, calls + 1):
+            reply = probe.call(Trigger, f"{ns}/sim_node/step", Trigger.Request())
+            assert reply.success, reply.message
+            want_ns = k * chunks_per_call * 20_000_000
+            probe.spin_until(
+                lambda: all(len(got[f"{ns}/{t}"]) - start[t] == k * chunks_per_call
+                            for t in ARRAYS) and got[f"{ns}/clock"]
+                and got[f"{ns}/clock"][-1].clock.sec * 10**9
+                + got[f"{ns}/clock"][-1].clock.nanosec == want_ns,
+                10, f"{ns}: the chunks of step call {k}")
+            final_clocks.append(clock_s(got[f"{ns}/clock"][-1]))
+        # lock-step: nothing moves between calls
+        probe.spin_for(0.3)
+        assert all(len(got[f"{ns}/{t}"]) - start[t] == calls * chunks_per_call for t in ARRAYS)
+        return {t: got[f"{ns}/{t}"][start[t]:] for t in ARRAYS}, final_clocks
+
+    initial_a = reset("/step_a")
+    first_a, clocks_a = run("/step_a")
+    assert reset("/step_a") == initial_a  # reset mid-run restores the initial state
+    second_a, clocks_a2 = run("/step_a")
+    initial_b = reset("/step_b")
+    first_b, clocks_b = run("/step_b")
+
+    assert initial_b == initial_a
+    assert first_a == second_a, "a run after ~/reset differs from the first one"
+    assert first_a == first_b, "two lock-step runs differ"
+    assert clocks_a == clocks_a2 == clocks_b
+    brake = deserialize_message(first_a["vehicles/brake_force"][-1], Float64MultiArray)
+    assert max(brake.data) > 0.0, "auto_brake_at_s did not apply the brake"
+
+    for proc in procs:
+        assert_clean_exit(proc, signal.SIGTERM)
+
+
+# --------------------------------------------------------------------------- start-up
+
+
+def test_bad_start_up_parameters_end_with_one_clear_line(processes, tmp_path):
+    cases = {
+        "consist": (["consist:=no_such_scenario"], "unknown scenario"),
+        "brake_params_file": (["brake_params_file:=/nonexistent/brakes.yaml"], "does not exist"),
+        "chunk_s": (["chunk_s:=-0.02"], "out of range"),
+        "initial_speed_kmh": (["consist:=consists/e402b_10_shimmns_80t.yaml"], "must be given"),
+        "real_time_factor": (["real_time_factor:=-1.0"], "out of range"),
+    }
+    started = {name: start_node(processes, f"/bad_{name}", *params, name=name)
+               for name, (params, _) in cases.items()}
+    finishing = start_node(processes, "/finish", "max_sim_time_s:=0.5", "real_time_factor:=0.0",
+                           "auto_brake_at_s:=0.0",
+                           ros_args=("--params-file", str(REPO / "config" / "sim_node.yaml")))
+    for name, proc in started.items():
+        status = proc.wait(60)
+        out = proc.output().strip()
+        assert status != 0, out
+        assert "Traceback" not in out
+        assert len(out.splitlines()) == 1, out
+        assert f"parameter {name}" in out and cases[name][1] in out, out
+    assert finishing.wait(60) == 0, finishing.output()
+    assert "max_sim_time_s" in finishing.output()
+
+
+def test_parameter_file_declares_every_parameter_with_its_default():
+    import yaml
+
+    from ltd_brake_ros.sim_node import PARAMETERS
+
+    listed = yaml.safe_load((REPO / "config" / "sim_node.yaml").read_text())
+    values = listed["sim_node"]["ros__parameters"]
+    assert values == {p.name: p.default for p in PARAMETERS}
+    for p in PARAMETERS:
+        d = p.descriptor()
+        assert d.description and d.type != 0, p.name
+        if isinstance(p.default, (int, float)) and not isinstance(p.default, bool):
+            assert d.floating_point_range or d.integer_range, f"{p.name} has no range"
+    writable = {p.name for p in PARAMETERS if not p.read_only}
+    assert writable == {"real_time_factor", "steps_per_call"}
+
+
+# --------------------------------------------------------------------------- faults (in-process)
+
+
+def test_simulation_error_is_reported_and_reset_recovers(ros_context, probe, monkeypatch):
+    from ltd_brake_ros.sim_node import SimNode
+
+    node = SimNode(context=ros_context, namespace="/inproc",
+                   parameter_overrides=[Parameter("lockstep", value=True),
+                                        Parameter("consist", value="scenario_7")])
+    seen = []
+    node.add_tap(lambda topic, msg, stamp_ns, inbound: seen.append((topic, msg, inbound)))
+    probe.executor.add_node(node)
+    node.start()
+    try:
+        name = "/inproc/sim_node"
+        probe.publish("/inproc/brake_command", Bool(data=True))
+        probe.spin_until(lambda: any(inbound for _, _, inbound in seen), 10,
+                         "the command to reach the input hook")
+        assert probe.call(Trigger, f"{name}/step", Trigger.Request()).success
+
+        def diverge(*args, **kwargs):
+            raise SimulationError("forced: Newton iteration did not converge")
+
+        monkeypatch.setattr(node._sim, "advance", diverge)
+        reply = probe.call(Trigger, f"{name}/step", Trigger.Request())
+        assert not reply.success and "forced" in reply.message
+        errors = [msg for topic, msg, _ in seen if topic == "/diagnostics"
+                  and msg.status[0].level == DiagnosticStatus.ERROR]
+        assert errors and "forced" in errors[-1].status[0].message
+        reply = probe.call(Trigger, f"{name}/step", Trigger.Request())
+        assert not reply.success and "reset" in reply.message  # no advancing until reset
+        monkeypatch.undo()
+        assert probe.call(Trigger, f"{name}/reset", Trigger.Request()).success
+        reply = probe.call(Trigger, f"{name}/step", Trigger.Request())
+        assert reply.success, reply.message
+        assert node.sim_time_s == pytest.approx(0.02)
+        topics = {topic for topic, _, inbound in seen if not inbound}
+        assert {"/inproc/vehicles/speed", "/inproc/couplers/force", "/clock",
+                "/diagnostics"} <= topics
+    finally:
+        probe.executor.remove_node(node)
+        node.close()
+
+
+# --------------------------------------------------------------------------- packaging
+
+
+def test_colcon_build_installs_what_ros2_run_resolves(tmp_path):
+    colcon = Path(sys.executable).parent / "colcon"
+    if not colcon.exists():
+        pytest.skip("colcon is not installed")
+    src = tmp_path / "src" / "ltd_brake_ros"
+    src.mkdir(parents=True)
+    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc", "*.egg-info")
+    for entry in ("package.xml", "setup.py", "setup.cfg", "README.md", "LICENSE", "resource",
+                  "config", "ltd_brake_ros"):
+        path = REPO / entry
+        if path.is_dir():
+            shutil.copytree(path, src / entry, ignore=ignore)
+        elif path.exists():
+            shutil.copy2(path, src / entry)
+    build = subprocess.run(
+        [str(colcon), "--log-base", "log", "build", "--base-paths", "src", "--build-base",
+         "build", "--install-base", "install"], cwd=tmp_path, capture_output=True, text=True,
+        timeout=300)
+    assert build.returncode == 0, build.stdout + build.stderr
+    prefix = tmp_path / "install" / "ltd_brake_ros"
+    assert os.access(prefix / "lib" / "ltd_brake_ros" / "sim_node", os.X_OK)
+
+    # what `ros2 run ltd_brake_ros sim_node` does: package prefix from the ament index, then the
+    # executable in <prefix>/lib/<package>
+    env = dict(os.environ, AMENT_PREFIX_PATH=str(prefix),
+               PYTHONPATH=str(next(prefix.glob("lib/python*/site-packages"))))
+    resolve = (
+        "import os\n"
+        "from ament_index_python.packages import get_package_prefix, get_package_share_directory\n"
+        "import ltd_brake_ros\n"
+        "prefix = get_package_prefix('ltd_brake_ros')\n"
+        "libdir = os.path.join(prefix, 'lib', 'ltd_brake_ros')\n"
+        "exes = sorted(f for f in os.listdir(libdir) if os.access(os.path.join(libdir, f), os.X_OK))\n"
+        "print(prefix); print(get_package_share_directory('ltd_brake_ros'))\n"
+        "print(os.path.join(libdir, 'sim_node') if 'sim_node' in exes else 'missing')\n"
+        "print(ltd_brake_ros.__file__)\n")
+    out = subprocess.run([sys.executable, "-c", resolve], env=env, cwd=tmp_path,
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    got_prefix, share, exe, module = out.stdout.split()
+    assert Path(got_prefix) == prefix
+    assert (Path(share) / "package.xml").is_file()
+    assert (Path(share) / "config" / "scenarios.yaml").is_file()
+    assert (Path(prefix) / "share/ament_index/resource_index/packages/ltd_brake_ros").is_file()
+    assert Path(exe) == prefix / "lib" / "ltd_brake_ros" / "sim_node"
+    assert Path(module).is_relative_to(prefix), "the installed package was not the one imported"
+
+    # the installed executable runs the installed code, which finds its config through the index
+    run = subprocess.run([exe, "--ros-args", "-p", "consist:=no_such_scenario"], env=env,
+                         cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert run.returncode == 1, run.stdout + run.stderr
+    assert "unknown scenario" in run.stderr and "12" in run.stderr, run.stderr
+    assert "Traceback" not in run.stderr
