@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # One entry point for users and CI. Creates .venv (numpy, scipy, numba, ROS 2 Jazzy wheels, ...)
 # on first use, then:
-#   ./dev.sh demo          emergency stop of the default scenario (paper scenario 6)
+#   ./dev.sh demo          the whole product on the default scenario (paper scenario 6): sim_node
+#                          brakes by itself, records the run to runs/, stops once the train has
+#                          stopped; then the report and its plots
 #   ./dev.sh test [ARGS]   the whole test suite (ARGS go to pytest)
 #   ./dev.sh bench         the speed benchmark
 #   ./dev.sh run CMD ...   any command inside the environment (e.g. ./dev.sh run ltd-brake validate)
@@ -31,12 +33,20 @@ setup() {
     touch "$stamp"
   fi
   export PATH="$PWD/$VENV/bin:$PATH"
+  # DDS discovery stays on this machine unless the caller says otherwise
+  export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
 }
 
 cmd=${1:-demo}
 shift || true
 case "$cmd" in
-  demo)  setup; exec ltd-brake simulate --scenario 6 "$@" ;;
+  demo)
+    setup
+    run_dir="runs/demo_$(date +%Y%m%d-%H%M%S)"
+    sim_node --ros-args -p auto_brake_at_s:=1.0 -p real_time_factor:="${RTF:-0.0}" \
+      -p record:=true -p record_dir:="$run_dir" -p shutdown_after_stop_s:=2.0 "$@"
+    echo
+    exec ltd-brake report "$run_dir" ;;
   test)  setup; exec python -m pytest "$@" ;;
   bench) setup; exec python benchmarks/bench_integrator.py "$@" ;;
   run)   setup; exec "$@" ;;

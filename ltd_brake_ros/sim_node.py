@@ -13,9 +13,15 @@ vehicle 0 is the head, coupler 1 is the one behind it):
   ``std_msgs/msg/Float64MultiArray`` with ``layout.dim[0]`` labelled ``vehicle`` or ``coupler``;
   ``/clock`` (``rosgraph_msgs/msg/Clock``) after every chunk when ``publish_clock`` is true;
   ``/diagnostics`` (``diagnostic_msgs/msg/DiagnosticArray``) about once per wall second;
+* publishes ``vehicles/traction_force`` [N, traction positive, dynamic brake negative];
 * subscribes ``brake_command`` (``std_msgs/msg/Bool``): true applies the emergency brake at the
   start of the next chunk, false releases it (exponential decay with the brake parameters'
   ``t_release_s``); a repeated true does not restart the application;
+* subscribes ``brake_demand`` (``std_msgs/msg/Float64``, 0-1: service brake, not validated
+  against measurements) and ``traction_command`` (``std_msgs/msg/Float64``, -1-1: dynamic
+  brake to full traction); a NaN, infinite or out-of-range value is rejected and logged;
+* records, with ``record:=true``, every message it publishes and receives to an MCAP bag
+  folder (rosbag2 layout, see :mod:`ltd_brake_ros.bag`);
 * services ``~/reset`` (``std_srvs/srv/Trigger``), ``~/pause`` (``std_srvs/srv/SetBool``) and
   ``~/step`` (``std_srvs/srv/Trigger``, advances ``steps_per_call`` chunks when in lock-step
   mode or paused).
@@ -49,12 +55,15 @@ from rclpy.exceptions import InvalidParameterTypeException, ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Bool, Float64MultiArray, MultiArrayDimension
+from std_msgs.msg import Bool, Float64, Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import SetBool, Trigger
 
-from .inputs import (BrakeParams, Consist, CouplerLUT, InputError, get_scenario,
-                     load_brake_params, load_consist, load_coupler_lut, resolve_config_path)
+from .bag import BagWriter, qos_profiles_yaml, type_name
+from .inputs import (BrakeParams, Consist, CouplerLUT, InputError, Track, get_scenario,
+                     load_brake_params, load_consist, load_coupler_lut, load_track,
+                     resolve_config_path)
 from .simulator import Commands, SimulationError, Simulator, Snapshot
 
 NODE_NAME = "sim_node"
@@ -76,11 +85,18 @@ ARRAY_TOPICS = (
     ("vehicles/speed", "speed_m_s", "vehicle"),
     ("vehicles/position", "position_m", "vehicle"),
     ("vehicles/brake_force", "brake_force_N", "vehicle"),
+    ("vehicles/traction_force", "traction_force_N", "vehicle"),
     ("couplers/force", "coupler_force_N", "coupler"),
 )
 CLOCK_TOPIC = "/clock"
 DIAGNOSTICS_TOPIC = "/diagnostics"
 BRAKE_COMMAND_TOPIC = "brake_command"
+BRAKE_DEMAND_TOPIC = "brake_demand"
+TRACTION_TOPIC = "traction_command"
+#: Numeric input topics: accepted range of ``std_msgs/Float64.data``.
+NUMERIC_INPUTS = {BRAKE_DEMAND_TOPIC: (0.0, 1.0), TRACTION_TOPIC: (-1.0, 1.0)}
+#: Wall time between two warnings about rejected inputs on one topic [s].
+REJECT_LOG_PERIOD_S = 2.0
 
 #: Wall time between two diagnostics messages [s].
 DIAGNOSTICS_PERIOD_S = 1.0
@@ -166,6 +182,20 @@ PARAMETERS = (
     ParamSpec("max_sim_time_s", -1.0,
               "Shut down cleanly once the simulated time reaches this [s]; -1 = run until "
               "signalled", lo=-1.0, hi=1e7),
+    ParamSpec("shutdown_after_stop_s", -1.0,
+              "Shut down cleanly this long after the train has stopped [s simulated]; "
+              "-1 = keep running", lo=-1.0, hi=1e6),
+    ParamSpec("track_file", "",
+              "Track profile (YAML or CSV: chainage -> gradient [per mille], curve radius [m]); "
+              "empty = level straight track"),
+    ParamSpec("start_chainage_m", 0.0,
+              "Chainage of the head's front at t = 0 [m] (overrides the track file's)",
+              lo=-1e7, hi=1e7),
+    ParamSpec("record", False,
+              "Record every published and received message to an MCAP bag folder"),
+    ParamSpec("record_dir", "",
+              "Bag folder for record:=true; empty = runs/run_<date>-<time> in the working "
+              "directory; after ~/reset a new folder <record_dir>_2, _3, ... is started"),
 )
 
 _TYPE_WORDS = {bool: "true or false", int: "a whole number", float: "a number with a decimal "
@@ -201,6 +231,8 @@ class PlantInputs:
     lut : CouplerLUT
     origin : str
         Human description of where the consist came from (scenario or file).
+    track : Track
+        Track profile.
     """
 
     consist: Consist
@@ -208,6 +240,7 @@ class PlantInputs:
     params: BrakeParams
     lut: CouplerLUT
     origin: str
+    track: Track = field(default_factory=Track)
 
 
 def _looks_like_file(text: str) -> bool:
@@ -216,7 +249,8 @@ def _looks_like_file(text: str) -> bool:
 
 
 def load_plant_inputs(consist: str, initial_speed_kmh: float, brake_params_file: str = "",
-                      coupler_lut_file: str = "") -> PlantInputs:
+                      coupler_lut_file: str = "", track_file: str = "",
+                      start_chainage_m: float = 0.0) -> PlantInputs:
     """Resolve and validate the node's input parameters.
 
     Parameters
@@ -225,8 +259,10 @@ def load_plant_inputs(consist: str, initial_speed_kmh: float, brake_params_file:
         Consist YAML file, or scenario name/number (``scenario_6``, ``6``).
     initial_speed_kmh : float
         Initial speed [km/h]; negative takes the scenario's speed.
-    brake_params_file, coupler_lut_file : str
-        Files; empty strings take the shipped defaults.
+    brake_params_file, coupler_lut_file, track_file : str
+        Files; empty strings take the shipped defaults (level straight track).
+    start_chainage_m : float
+        Chainage of the head's front at t = 0 [m].
 
     Returns
     -------
@@ -263,7 +299,12 @@ def load_plant_inputs(consist: str, initial_speed_kmh: float, brake_params_file:
         lut = load_coupler_lut(coupler_lut_file or None)
     except InputError as exc:
         raise StartupError("coupler_lut_file", str(exc)) from None
-    return PlantInputs(train, float(speed), params, lut, origin)
+    try:
+        track = load_track(track_file, start_chainage_m) if track_file \
+            else Track(start_chainage_m=start_chainage_m)
+    except InputError as exc:
+        raise StartupError("track_file", str(exc)) from None
+    return PlantInputs(train, float(speed), params, lut, origin, track)
 
 
 # --------------------------------------------------------------------------- messages
@@ -358,7 +399,8 @@ class SimNode(Node):
     def _setup(self) -> None:
         p = self._declare_parameters()
         self.inputs = load_plant_inputs(p["consist"], p["initial_speed_kmh"],
-                                        p["brake_params_file"], p["coupler_lut_file"])
+                                        p["brake_params_file"], p["coupler_lut_file"],
+                                        p["track_file"], p["start_chainage_m"])
         self._sim = self._build_simulator(self.inputs, p["chunk_s"])
         self._chunk_s = p["chunk_s"]
         self._rtf = p["real_time_factor"]
@@ -366,8 +408,14 @@ class SimNode(Node):
         self._steps_per_call = p["steps_per_call"]
         self._auto_brake_at_s = p["auto_brake_at_s"]
         self._max_sim_time_s = p["max_sim_time_s"]
+        self._shutdown_after_stop_s = p["shutdown_after_stop_s"]
         self._init_plant_state()
         self._create_interfaces(p["publish_clock"])
+        self._param_values = p
+        if p["record"]:
+            base = p["record_dir"] or time.strftime("runs/run_%Y%m%d-%H%M%S")
+            self._record_base = base
+            self._open_recording(base)
         c = self.inputs.consist
         mode = "lock-step" if self._lockstep else f"real_time_factor {self._rtf:g}"
         self.get_logger().info(
@@ -378,7 +426,8 @@ class SimNode(Node):
     @staticmethod
     def _build_simulator(inputs: PlantInputs, chunk_s: float) -> Simulator:
         try:
-            sim = Simulator(inputs.consist, inputs.speed_kmh, inputs.params, inputs.lut)
+            sim = Simulator(inputs.consist, inputs.speed_kmh, inputs.params, inputs.lut,
+                            inputs.track)
         except InputError as exc:
             name = "initial_speed_kmh" if exc.source == "speed_kmh" else "consist"
             raise StartupError(name, str(exc)) from None
@@ -402,6 +451,14 @@ class SimNode(Node):
         self._quit = threading.Event()
         self._thread = threading.Thread(target=self._plant_loop, name="plant", daemon=True)
         self._emergency = False
+        self._brake_demand = 0.0
+        self._traction = 0.0
+        self._recorder: BagWriter | None = None
+        self._recording_error: str | None = None
+        self._record_base = ""
+        self._record_runs = 0
+        self._rejected: dict[str, int] = {}
+        self._next_reject_log: dict[str, float] = {}
         self._auto_brake_done = False
         self._lut_warned = False
         self._paused = False
@@ -419,10 +476,15 @@ class SimNode(Node):
             self._outputs[CLOCK_TOPIC] = self.create_publisher(Clock, CLOCK_TOPIC, CLOCK_QOS)
         self._outputs[DIAGNOSTICS_TOPIC] = self.create_publisher(
             DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
-        # further input topics: a handler here and a subscription below
-        self._input_handlers = {BRAKE_COMMAND_TOPIC: self._apply_brake_command}
-        self._input_subscriptions = {BRAKE_COMMAND_TOPIC: self.create_subscription(
-            Bool, BRAKE_COMMAND_TOPIC, self._receiver(BRAKE_COMMAND_TOPIC), COMMAND_QOS)}
+        # input topics: a handler and a subscription each
+        self._input_handlers = {BRAKE_COMMAND_TOPIC: self._apply_brake_command,
+                                BRAKE_DEMAND_TOPIC: self._apply_brake_demand,
+                                TRACTION_TOPIC: self._apply_traction}
+        types = {BRAKE_COMMAND_TOPIC: Bool, BRAKE_DEMAND_TOPIC: Float64, TRACTION_TOPIC: Float64}
+        self._input_subscriptions = {
+            topic: self.create_subscription(types[topic], topic, self._receiver(topic),
+                                            COMMAND_QOS)
+            for topic in self._input_handlers}
         self.create_service(Trigger, "~/reset", self._srv_reset)
         self.create_service(SetBool, "~/pause", self._srv_pause)
         self.create_service(Trigger, "~/step", self._srv_step)
@@ -472,6 +534,7 @@ class SimNode(Node):
         self._wake.set()
         if self._thread.is_alive():
             self._thread.join(timeout=10.0)
+        self._close_recording()
         self.destroy_node()
 
     @property
@@ -487,15 +550,23 @@ class SimNode(Node):
     # ------------------------------------------------------------------ the one way out and in
 
     def _emit(self, topic: str, msg: Any) -> None:
-        """Publish ``msg`` on ``topic`` (a key of ``self._outputs``) and show it to taps."""
+        """Publish ``msg`` on ``topic`` (a key of ``self._outputs``), record it, show it to taps."""
         publisher = self._outputs[topic]
-        publisher.publish(msg)
+        if self._recorder is not None:
+            # serialise once: the recording holds exactly the bytes sent
+            data = serialize_message(msg)
+            publisher.publish(data)
+            self._record(publisher.topic_name, data)
+        else:
+            publisher.publish(msg)
         for tap in self._taps:
             tap(publisher.topic_name, msg, self._stamp_ns, False)
 
     def _on_input(self, topic: str, msg: Any) -> None:
         """Handle a received (or self-issued) input message on the plant thread."""
         name = self._input_subscriptions[topic].topic_name
+        if self._recorder is not None:
+            self._record(name, serialize_message(msg))
         for tap in self._taps:
             tap(name, msg, self._stamp_ns, True)
         self._input_handlers[topic](msg)
@@ -503,6 +574,93 @@ class SimNode(Node):
     def _apply_brake_command(self, msg: Bool) -> None:
         # held until changed; the simulator ignores a repeated true
         self._emergency = bool(msg.data)
+
+    def _checked_value(self, topic: str, value: float) -> float | None:
+        lo, hi = NUMERIC_INPUTS[topic]
+        if math.isfinite(value) and lo <= value <= hi:
+            return float(value)
+        # rejected: counted, logged at most every REJECT_LOG_PERIOD_S, the old value kept
+        self._rejected[topic] = self._rejected.get(topic, 0) + 1
+        now = time.monotonic()
+        if now >= self._next_reject_log.get(topic, 0.0):
+            self._next_reject_log[topic] = now + REJECT_LOG_PERIOD_S
+            self.get_logger().warn(
+                f"{self._input_subscriptions[topic].topic_name}: rejected {value!r}, expected a "
+                f"finite number from {lo:g} to {hi:g}; keeping the previous value "
+                f"({self._rejected[topic]} rejected so far)")
+        return None
+
+    def _apply_brake_demand(self, msg: Float64) -> None:
+        value = self._checked_value(BRAKE_DEMAND_TOPIC, msg.data)
+        if value is not None:
+            self._brake_demand = value
+
+    def _apply_traction(self, msg: Float64) -> None:
+        value = self._checked_value(TRACTION_TOPIC, msg.data)
+        if value is not None:
+            self._traction = value
+
+    # ------------------------------------------------------------------ recording
+
+    def _open_recording(self, base: str) -> None:
+        self._record_runs += 1
+        folder = base if self._record_runs == 1 else f"{base}_{self._record_runs}"
+        from .report import run_metadata
+
+        meta = run_metadata(self._sim, scenario=self.inputs.origin,
+                            parameters=dict(self._param_values),
+                            brake_params=str(self.inputs.params.source),
+                            coupler_lut=str(self.inputs.lut.source),
+                            track=str(self.inputs.track.source))
+        try:
+            rec = BagWriter(folder, metadata=meta)
+            for publisher in self._outputs.values():
+                rec.add_topic(publisher.topic_name, type_name(publisher.msg_type),
+                              qos_profiles_yaml(publisher.qos_profile))
+            for sub in self._input_subscriptions.values():
+                rec.add_topic(sub.topic_name, type_name(sub.msg_type),
+                              qos_profiles_yaml(sub.qos_profile))
+        except (OSError, ValueError) as exc:
+            raise StartupError("record_dir", f"cannot record to {folder}: {exc}") from None
+        self._recorder = rec
+        self._recording_error = None
+        self.get_logger().info(f"recording to {rec.folder}")
+
+    def _record(self, topic: str, data: bytes) -> None:
+        try:
+            self._recorder.write(topic, data, self._stamp_ns)
+        except OSError as exc:
+            self._recording_failed(exc)
+
+    def _recording_failed(self, exc: BaseException) -> None:
+        # e.g. a full disk: stop recording, keep the plant running; complete chunks already on
+        # disk stay readable (ltd-brake recover rewrites the file)
+        rec, self._recorder = self._recorder, None
+        self._recording_error = f"{type(exc).__name__}: {exc}"
+        self.get_logger().error(
+            f"recording to {rec.folder} stopped: {self._recording_error}; the plant keeps "
+            f"running; {rec.messages_on_disk} messages are on disk (ltd-brake recover "
+            f"{rec.folder} makes it a complete bag)")
+
+    def _flush_recording(self) -> None:
+        if self._recorder is not None:
+            try:
+                self._recorder.flush_if_due()
+            except OSError as exc:
+                self._recording_failed(exc)
+
+    def _close_recording(self) -> None:
+        rec, self._recorder = self._recorder, None
+        if rec is None:
+            return
+        try:
+            rec.close()
+            self.get_logger().info(f"recording finished: {rec.message_count} messages in "
+                                   f"{rec.folder}")
+        except OSError as exc:
+            self._recorder = rec
+            self._recording_failed(exc)
+            self._recorder = None
 
     # ------------------------------------------------------------------ plant thread
 
@@ -520,7 +678,8 @@ class SimNode(Node):
         return job.result
 
     def _run_jobs(self) -> None:
-        while True:
+        # only the jobs queued so far: a flood of commands must not starve the chunks
+        for _ in range(self._jobs.qsize()):
             try:
                 job = self._jobs.get_nowait()
             except queue.Empty:
@@ -558,6 +717,7 @@ class SimNode(Node):
             while not self._quit.is_set():
                 self._wake.clear()
                 self._run_jobs()
+                self._flush_recording()
                 now = self._maybe_diagnostics()
                 timeout = self._next_diag_wall - now
                 if self._free_running():
@@ -594,7 +754,9 @@ class SimNode(Node):
             self._auto_brake_done = True
             self._on_input(BRAKE_COMMAND_TOPIC, Bool(data=True))
         try:
-            snap = sim.advance(self._chunk_s, Commands(emergency=self._emergency))
+            snap = sim.advance(self._chunk_s, Commands(emergency=self._emergency,
+                                                       brake_demand=self._brake_demand,
+                                                       traction=self._traction))
         except SimulationError as exc:
             self._fail(str(exc))
             return False
@@ -616,6 +778,10 @@ class SimNode(Node):
                          "counted in diagnostics")
         if 0.0 <= self._max_sim_time_s <= snap.time_s + TIME_EPS_S:
             log.info(f"max_sim_time_s = {self._max_sim_time_s:g} s reached; shutting down")
+            self.finished.set()
+        if sim.stop_time_s is not None and \
+                0.0 <= self._shutdown_after_stop_s <= snap.time_s - sim.stop_time_s + TIME_EPS_S:
+            log.info(f"{self._shutdown_after_stop_s:g} s after the stop; shutting down")
             self.finished.set()
         return True
 
@@ -675,7 +841,16 @@ class SimNode(Node):
             "peak_buff_kN": f"{float(buff.min(initial=0.0)) / 1e3:.3f}",
             "peak_buff_coupler": str(int(np.argmin(buff)) + 1 if buff.size else 0),
             "couplers_beyond_lut": str(int(np.count_nonzero(sim.lut_excursion_m))),
+            "brake_demand": f"{self._brake_demand:g}",
+            "traction_command": f"{self._traction:g}",
+            "rejected_inputs": str(sum(self._rejected.values())),
+            "recording": "off" if self._recorder is None and not self._recording_error
+            else "failed" if self._recording_error else str(self._recorder.folder),
         }
+        if self._recording_error:
+            values["recording_error"] = self._recording_error
+            if level == DiagnosticStatus.OK:
+                level, message = DiagnosticStatus.WARN, "recording stopped"
         if sim.stopping_distance_m is not None:
             values["stopping_distance_m"] = f"{sim.stopping_distance_m:.3f}"
             values["stop_time_s"] = f"{sim.stop_time_s - (sim.command_time_s or 0.0):.3f}"
@@ -707,7 +882,21 @@ class SimNode(Node):
 
     def _reset(self) -> tuple[bool, str]:
         snap = self._sim.reset()
+        if self._recorder is not None:
+            # one run per bag: the report assumes it
+            self._close_recording()
+            self._open_recording(self._record_base)
         self._emergency = False
+        self._brake_demand = 0.0
+        self._traction = 0.0
+        self._brake_demand = 0.0
+        self._traction = 0.0
+        self._recorder: BagWriter | None = None
+        self._recording_error: str | None = None
+        self._record_base = ""
+        self._record_runs = 0
+        self._rejected: dict[str, int] = {}
+        self._next_reject_log: dict[str, float] = {}
         self._auto_brake_done = False
         self._lut_warned = False
         self._failure = None
