@@ -43,7 +43,9 @@ case "$cmd" in
   demo)
     setup
     run_dir="runs/demo_$(date +%Y%m%d-%H%M%S)"
-    sim_node --ros-args -p auto_brake_at_s:=1.0 -p real_time_factor:="${RTF:-0.0}" \
+    rtf="${RTF:-0.0}"
+    [[ "$rtf" == *.* ]] || rtf="$rtf.0"  # a ROS double parameter needs the decimal point
+    sim_node --ros-args -p auto_brake_at_s:=1.0 -p real_time_factor:="$rtf" \
       -p record:=true -p record_dir:="$run_dir" -p shutdown_after_stop_s:=2.0 "$@"
     echo
     exec ltd-brake report "$run_dir" ;;
