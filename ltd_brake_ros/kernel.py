@@ -279,7 +279,7 @@ def _residual(u, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale, resist, r
             g[i] = g0 + total * u[i] / v_stick
             diag[i] = meff[i] / bh + (total + dr * spd) / v_stick
             fair[i] = fa * spd / v_stick
-        if abs(g[i]) > tol[i]:
+        if not abs(g[i]) <= tol[i]:  # also catches NaN
             converged = False
     return converged
 
