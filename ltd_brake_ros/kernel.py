@@ -285,6 +285,15 @@ def _residual(u, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale, resist, r
 
 
 @jit
+def _all_finite(a):
+    """True when every element of ``a`` is finite."""
+    for value in a:
+        if not math.isfinite(value):
+            return False
+    return True
+
+
+@jit
 def _solve_tridiagonal(dvec, cj, g, off, dwork, du):
     """Solve J du = -g, J = diag(dvec) + sum over couplers of cj * (e_j - e_j+1)(e_j - e_j+1)^T.
 
@@ -455,7 +464,8 @@ def run_steps(nsteps, h, t, hp,
                                   cj, fc, fair)
             if converged:
                 break
-            if it >= max_iter:
+            if it >= max_iter or not _all_finite(g):
+                # a NaN or infinite force cannot be iterated away: fail at once
                 stats[1] += it
                 return NEWTON_FAILED, t, hp, _step
             it += 1
