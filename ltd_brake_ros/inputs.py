@@ -178,6 +178,14 @@ class _Fields:
             raise self.error(name, f"must be {bound}, got {value}")
         return value
 
+    def boolean(self, name: str, default: bool) -> bool:
+        if not self.has(name):
+            return default
+        value = self.data[name]
+        if not isinstance(value, bool):
+            raise self.error(name, f"must be true or false, got {_kind(value)} {value!r}")
+        return value
+
     def string(self, name: str, default: str | None = None,
                choices: tuple[str, ...] | None = None) -> str:
         if not self.has(name):
@@ -247,6 +255,10 @@ class BrakeParams:
     t_service_fill_s : float
         Filling time of a service application in P; G vehicles scale it by
         t_fill_G / t_fill. A default for experiments, not validated [s].
+    simultaneous : bool
+        The command reaches every vehicle at once (t_del = 0 in Eq. 6), as with
+        electronically controlled pneumatic brakes or radio distributed power; the paper's
+        model is for a brake pipe vented at the head only. Not validated.
     source : str
         File the values came from.
     """
@@ -261,6 +273,7 @@ class BrakeParams:
     t_fill_G_s: float = 25.0
     t_release_G_s: float = 50.0
     t_service_fill_s: float = 7.0
+    simultaneous: bool = False
     source: str = "built-in defaults"
 
     @property
@@ -275,7 +288,7 @@ class BrakeParams:
 
 
 _BRAKE_FIELDS = {"t_app_s", "v_air_m_s", "t_fill_s", "k0", "k_loco", "mu_eff", "t_release_s",
-                 "t_fill_G_s", "t_release_G_s", "t_service_fill_s"}
+                 "t_fill_G_s", "t_release_G_s", "t_service_fill_s", "simultaneous"}
 
 
 def brake_params_from_mapping(data: Any, source: str) -> BrakeParams:
@@ -307,6 +320,7 @@ def brake_params_from_mapping(data: Any, source: str) -> BrakeParams:
         t_release_G_s=f.number("t_release_G_s", d.t_release_G_s, lo=0.0, lo_open=True, hi=600.0),
         t_service_fill_s=f.number("t_service_fill_s", d.t_service_fill_s, lo=0.0, lo_open=True,
                                   hi=300.0),
+        simultaneous=f.boolean("simultaneous", d.simultaneous),
         source=str(source),
     )
 

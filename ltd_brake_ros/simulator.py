@@ -232,8 +232,9 @@ class Simulator:
         # vehicle centres behind the head's front [m]; Eq. 6 delay from the head's centre
         front = np.concatenate(([0.0], np.cumsum(self.length_m)[:-1]))
         self._centre_offset_m = front + 0.5 * self.length_m
-        self.brake_delay_s = params.t_app_s + (self._centre_offset_m - self._centre_offset_m[0]) \
-            / params.v_air_m_s
+        distance = self._centre_offset_m - self._centre_offset_m[0]
+        self.brake_delay_s = params.t_app_s + (0.0 * distance if params.simultaneous
+                                               else distance / params.v_air_m_s)
         self._fmax = self.max_block_force_N if self._brakes else np.zeros(n)
         # brake position: G fills (and releases) slower; service applications scale alike
         in_g = np.array([v.brake_position == "G" for v in vs])
