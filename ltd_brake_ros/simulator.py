@@ -96,9 +96,9 @@ class Event:
             return (f"t = {self.time_s:.2f} s: train stopped, stopping distance "
                     f"{d['stopping_distance_m']:.1f} m")
         if self.kind == "coupler_out_of_lut":
-            return (f"t = {self.time_s:.2f} s: coupler {d['coupler']} left the coupler table "
-                    f"range (deflection {d['deflection_mm']:.1f} mm); forces beyond it are "
-                    "extrapolated with the end slope")
+            return (f"t = {self.time_s:.2f} s: coupler {d['coupler']} left the coupler table, "
+                    f"{d['beyond_table_mm']:.1f} mm beyond its end within the chunk; forces "
+                    "there are extrapolated with the end slopes")
         return f"t = {self.time_s:.2f} s: {self.kind.replace('_', ' ')}"
 
 
