@@ -1144,35 +1144,3 @@ def cmd_calibrate(args) -> int:
         print()
         print(f"wrote {args.out}")
     return 0
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``calibrate`` on its own (``python -m ltd_brake_ros.calibrate ARGS``).
-
-    Parameters
-    ----------
-    argv : sequence of str, optional
-        Arguments after ``calibrate`` (default: ``sys.argv[1:]``).
-
-    Returns
-    -------
-    int
-        Exit status: 0 success, 2 bad input, 3 simulation failure.
-    """
-    from .simulator import SimulationError
-
-    parser = argparse.ArgumentParser(prog="ltd-brake")
-    add_parser(parser.add_subparsers(dest="command"))
-    args = parser.parse_args(["calibrate", *(sys.argv[1:] if argv is None else argv)])
-    try:
-        return args.func(args)
-    except InputError as exc:
-        print(f"ltd-brake calibrate: error: {exc}", file=sys.stderr)
-        return 2
-    except SimulationError as exc:
-        print(f"ltd-brake calibrate: simulation failed: {exc}", file=sys.stderr)
-        return 3
-
-
-if __name__ == "__main__":
-    sys.exit(main())

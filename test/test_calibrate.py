@@ -1,5 +1,4 @@
 """Calibration of the brake parameters: identifiability, the uic preset, the command line."""
-import argparse
 from dataclasses import replace
 
 import numpy as np
@@ -101,23 +100,8 @@ def test_uic_curve_matches_table_1():
 # --------------------------------------------------------------------------- parameter file
 
 
-def _main_with_calibrate(monkeypatch):
-    """``cli.main`` with the calibrate subcommand registered (if cli does not yet)."""
-    original = cli.build_parser
-
-    def build_parser():
-        parser = original()
-        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-        if "calibrate" not in sub.choices:
-            cal_mod.add_parser(sub)
-        return parser
-
-    monkeypatch.setattr(cli, "build_parser", build_parser)
-    return cli.main
-
-
 def test_out_file_round_trips(tmp_path, monkeypatch, capsys):
-    main = _main_with_calibrate(monkeypatch)
+    main = cli.main
     out = tmp_path / "fitted.yaml"
     code = main(["calibrate", "--target", "paper", "--fit", "k0", "--scenarios", "1,2",
                  "--step-s", "0.02", "--jobs", "2", "--quiet", "--out", str(out)])
@@ -152,7 +136,7 @@ def test_out_file_round_trips(tmp_path, monkeypatch, capsys):
      ["--consist", "--target uic"]),
 ])
 def test_bad_input_exits_2_with_clear_message(monkeypatch, capsys, argv, words):
-    main = _main_with_calibrate(monkeypatch)
+    main = cli.main
     assert main(["calibrate", *argv, "--quiet"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("ltd-brake calibrate: error:")
@@ -168,7 +152,7 @@ def test_unknown_parameter_raises_input_error():
 
 
 def test_help_teaches_units_and_targets(monkeypatch, capsys):
-    main = _main_with_calibrate(monkeypatch)
+    main = cli.main
     with pytest.raises(SystemExit) as exc:
         main(["calibrate", "--help"])
     assert exc.value.code == 0
