@@ -889,14 +889,6 @@ class SimNode(Node):
         self._emergency = False
         self._brake_demand = 0.0
         self._traction = 0.0
-        self._brake_demand = 0.0
-        self._traction = 0.0
-        self._recorder: BagWriter | None = None
-        self._recording_error: str | None = None
-        self._record_base = ""
-        self._record_runs = 0
-        self._rejected: dict[str, int] = {}
-        self._next_reject_log: dict[str, float] = {}
         self._auto_brake_done = False
         self._lut_warned = False
         self._failure = None
