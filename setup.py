@@ -13,9 +13,9 @@ setup(
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
-        (f"share/{PACKAGE}/config/consists", glob("config/consists/*.yaml")),
-        (f"share/{PACKAGE}/config/brake_params", glob("config/brake_params/*.yaml")),
-        (f"share/{PACKAGE}/config/couplers", glob("config/couplers/*.yaml")),
+    ] + [
+        (f"share/{PACKAGE}/{folder}", glob(f"{folder}/*.yaml") + glob(f"{folder}/*.csv"))
+        for folder in sorted(p.rstrip("/") for p in glob("config/*/"))
     ],
     python_requires=">=3.10",
     install_requires=[
