@@ -1,0 +1,337 @@
+#!/usr/bin/env python3
+"""Closed-loop example: a PI speed controller that drives ``sim_node`` in lock-step.
+
+The controller brings the train to ``target_speed_kmh`` and holds it there. The plant
+(``sim_node`` started with ``lockstep:=true``) advances only when asked, so the run is
+deterministic and as fast as the loop. Every control period the controller
+
+1. calls ``<plant>/step`` (``std_srvs/srv/Trigger``): the plant advances one chunk
+   (``chunk_s`` of simulated time) and publishes the new state;
+2. reads the head vehicle's speed from ``vehicles/speed`` (``std_msgs/msg/Float64MultiArray``,
+   [m/s], vehicle 0 = head);
+3. publishes ``traction_command`` (``std_msgs/msg/Float64``: -1 full dynamic brake to 1 full
+   traction) and ``brake_demand`` (``std_msgs/msg/Float64``: 0 released to 1 full service
+   brake), which the plant applies during the next chunk.
+
+The law (:class:`SpeedLaw`): a PI controller on the speed error commands traction or the
+dynamic brake; the service brake helps only while the dynamic brake is saturated and the train
+is still far above the target, because the air brake releases slowly.
+
+Topic and service names are relative: start both nodes in the same namespace, e.g.::
+
+    sim_node --ros-args -r __ns:=/train1 -p lockstep:=true -p chunk_s:=0.1 \\
+        -p initial_speed_kmh:=80.0
+    python examples/speed_controller.py --ros-args -r __ns:=/train1 -p target_speed_kmh:=40.0
+
+``examples/run_speed_control.sh`` starts both and records the run.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass
+
+import rclpy
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rcl_interfaces.srv import GetParameters
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import parameter_value_to_python
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Float64, Float64MultiArray
+from std_srvs.srv import Trigger
+
+KMH_PER_M_S = 3.6
+
+#: Same QoS as the plant's inputs and state topics: reliable, so nothing is lost in lock-step.
+RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def _clip(value: float, lo: float, hi: float) -> float:
+    return min(max(value, lo), hi)
+
+
+@dataclass
+class SpeedLaw:
+    """PI speed law with anti-windup, a traction/brake deadband and service-brake assistance.
+
+    The PI part gives an effort ``u`` in [-1, 1] (traction positive, dynamic brake negative).
+    The service brake helps only while the dynamic brake is saturated (``u = -1``) and the
+    train is more than ``brake_margin_m_s`` too fast.
+
+    Parameters
+    ----------
+    target_m_s : float
+        Target speed [m/s].
+    kp : float
+        Proportional gain: effort per m/s of speed error [1/(m/s)].
+    ki : float
+        Integral gain: effort per m of integrated speed error [1/m].
+    deadband : float
+        Efforts smaller than this coast (traction and dynamic brake off) [-].
+    brake_margin_m_s : float
+        Speed excess above the target below which the service brake is released [m/s].
+    brake_gain : float
+        Service-brake demand per m/s of excess beyond the margin [1/(m/s)].
+    max_brake_demand : float
+        Largest service-brake demand [-].
+    """
+
+    target_m_s: float
+    kp: float
+    ki: float
+    deadband: float
+    brake_margin_m_s: float
+    brake_gain: float
+    max_brake_demand: float
+    #: Integral term [-], kept within the effort range.
+    integral: float = 0.0
+
+    def update(self, speed_m_s: float, dt_s: float) -> tuple[float, float]:
+        """Commands for the next control period.
+
+        Parameters
+        ----------
+        speed_m_s : float
+            Measured speed of the head vehicle [m/s].
+        dt_s : float
+            Control period [s].
+
+        Returns
+        -------
+        traction : float
+            Traction (> 0) or dynamic-brake (< 0) command, -1 to 1.
+        brake_demand : float
+            Service-brake demand, 0 to ``max_brake_demand``.
+        """
+        error = self.target_m_s - speed_m_s
+        u = self.kp * error + self.integral
+        # anti-windup (conditional integration): no integrating while the effort is saturated
+        # and the error pushes it further, so the integral is ready when the error turns
+        if not ((u >= 1.0 and error > 0.0) or (u <= -1.0 and error < 0.0)):
+            self.integral = _clip(self.integral + self.ki * error * dt_s, -1.0, 1.0)
+        u = _clip(self.kp * error + self.integral, -1.0, 1.0)
+
+        # deadband: small efforts coast, so the command cannot flip between traction and
+        # dynamic brake on every period near zero; shifted so the effort stays continuous
+        if abs(u) <= self.deadband:
+            traction = 0.0
+        else:
+            traction = (u - math.copysign(self.deadband, u)) / (1.0 - self.deadband)
+
+        # the air brake releases slowly (tens of seconds): apply it only while the dynamic
+        # brake is not enough, and let it go gradually well before the target so that its
+        # release does not carry the train below the target
+        brake = 0.0
+        if u <= -1.0:
+            excess_m_s = -error - self.brake_margin_m_s
+            brake = _clip(self.brake_gain * excess_m_s, 0.0, self.max_brake_demand)
+        return traction, brake
+
+
+#: The node's parameters: name -> (default, description, accepted range or None).
+PARAMETERS = {
+    "target_speed_kmh": (40.0, "Speed to reach and hold [km/h]", (0.0, 400.0)),
+    "kp": (2.0, "Proportional gain: effort per m/s of speed error [1/(m/s)]", (0.0, 100.0)),
+    "ki": (0.05, "Integral gain: effort per m of integrated speed error [1/m]", (0.0, 100.0)),
+    "deadband": (0.05, "Efforts below this coast, so that the command does not flip between "
+                       "traction and dynamic brake [-]", (0.0, 0.5)),
+    "brake_margin_kmh": (16.0, "The service brake is released once the train is less than this "
+                               "above the target [km/h]", (0.0, 400.0)),
+    "brake_gain": (0.1, "Service-brake demand per m/s above target + margin [1/(m/s)]",
+                   (0.0, 100.0)),
+    "max_brake_demand": (0.3, "Largest service-brake demand [-]", (0.0, 1.0)),
+    "duration_s": (180.0, "Simulated time to run, then exit; 0 = until interrupted [s]",
+                   (0.0, 1e7)),
+    "timeout_s": (10.0, "Wall time allowed for each exchange with the plant [s]", (0.1, 3600.0)),
+    "connect_timeout_s": (60.0, "Wall time allowed to find the plant at start-up (discovery "
+                                "can take seconds on a busy machine) [s]", (0.1, 3600.0)),
+    "plant": ("sim_node", "Name of the plant node, relative to this node's namespace", None),
+}
+
+
+def speed_law(p: dict) -> SpeedLaw:
+    """The control law for the node's parameter values.
+
+    Parameters
+    ----------
+    p : dict
+        Parameter values by name (see :data:`PARAMETERS`).
+
+    Returns
+    -------
+    SpeedLaw
+    """
+    return SpeedLaw(target_m_s=p["target_speed_kmh"] / KMH_PER_M_S, kp=p["kp"], ki=p["ki"],
+                    deadband=p["deadband"], brake_margin_m_s=p["brake_margin_kmh"] / KMH_PER_M_S,
+                    brake_gain=p["brake_gain"], max_brake_demand=p["max_brake_demand"])
+
+
+class SpeedController(Node):
+    """Drives a lock-step ``sim_node`` with :class:`SpeedLaw` (see the module docstring).
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ...).
+    """
+
+    def __init__(self, **kwargs):
+        super().__init__("speed_controller", **kwargs)
+        p = self._declare_parameters()
+        self.law = speed_law(p)
+        self.duration_s = p["duration_s"]
+        self.timeout_s = p["timeout_s"]
+        self.connect_timeout_s = p["connect_timeout_s"]
+        self._plant = p["plant"]
+        self._traction_pub = self.create_publisher(Float64, "traction_command", RELIABLE)
+        self._brake_pub = self.create_publisher(Float64, "brake_demand", RELIABLE)
+        self._speed_sub = self.create_subscription(Float64MultiArray, "vehicles/speed",
+                                                   self._on_speed, RELIABLE)
+        self._step_client = self.create_client(Trigger, f"{self._plant}/step")
+        self._param_client = self.create_client(GetParameters, f"{self._plant}/get_parameters")
+        self._speed_count = 0           # vehicles/speed messages received
+        self._head_speed_m_s = math.nan
+        self._spinner = SingleThreadedExecutor(context=self.context)
+        self._spinner.add_node(self)
+
+    def _declare_parameters(self) -> dict:
+        values = {}
+        for name, (default, text, limits) in PARAMETERS.items():
+            descriptor = ParameterDescriptor(description=text)
+            if limits is not None:
+                descriptor.floating_point_range = [
+                    FloatingPointRange(from_value=limits[0], to_value=limits[1], step=0.0)]
+            values[name] = self.declare_parameter(name, default, descriptor).value
+        return values
+
+    def _on_speed(self, msg: Float64MultiArray) -> None:
+        self._head_speed_m_s = msg.data[0]
+        self._speed_count += 1
+
+    # ------------------------------------------------------------------ talking to the plant
+
+    def _spin_until(self, done, what: str, timeout_s: float | None = None) -> None:
+        """Process callbacks until ``done()``; raise TimeoutError naming ``what``."""
+        timeout_s = timeout_s or self.timeout_s
+        deadline = time.monotonic() + timeout_s
+        while not done():
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"no {what} within {timeout_s:g} s")
+            self._spinner.spin_once(timeout_sec=0.05)
+
+    def _call(self, client, request, what: str):
+        future = client.call_async(request)
+        self._spin_until(future.done, f"answer from {what}")
+        return future.result()
+
+    def _connect(self) -> float:
+        """Wait for the plant, check it is in lock-step and return its chunk length [s]."""
+        self._spin_until(lambda: self._step_client.service_is_ready()
+                         and self._param_client.service_is_ready(), f"plant {self._plant}",
+                         self.connect_timeout_s)
+        names = ["lockstep", "chunk_s", "steps_per_call"]
+        reply = self._call(self._param_client, GetParameters.Request(names=names),
+                           f"{self._plant}/get_parameters")
+        lockstep, chunk_s, steps = (parameter_value_to_python(v) for v in reply.values)
+        if lockstep is not True or steps != 1:
+            raise RuntimeError(f"{self._plant} must run with lockstep:=true and "
+                               f"steps_per_call:=1 (got {lockstep}, {steps})")
+        self._spin_until(lambda: self._traction_pub.get_subscription_count() > 0
+                         and self._brake_pub.get_subscription_count() > 0
+                         and self._speed_sub.get_publisher_count() > 0,
+                         "match with the plant's topics", self.connect_timeout_s)
+        # the plant publishes its initial state once at start-up; whether it reaches us depends
+        # on discovery timing, so let it arrive now rather than mistake it for a step's state
+        end = time.monotonic() + 0.3
+        while time.monotonic() < end:
+            self._spinner.spin_once(timeout_sec=0.05)
+        return float(chunk_s)
+
+    def _step(self) -> None:
+        """Advance the plant one chunk and wait for the state it published."""
+        expected = self._speed_count + 1
+        reply = self._call(self._step_client, Trigger.Request(), f"{self._plant}/step")
+        if not reply.success:
+            raise RuntimeError(f"{self._plant}/step refused: {reply.message}")
+        # the plant publishes the state before it answers, but the message travels on another
+        # channel than the answer: wait for it (one vehicles/speed message per chunk)
+        self._spin_until(lambda: self._speed_count >= expected, "vehicles/speed after a step")
+
+    def _send(self, traction: float, brake_demand: float) -> None:
+        """Publish the commands so that the plant applies them in the next step."""
+        self._traction_pub.publish(Float64(data=traction))
+        self._brake_pub.publish(Float64(data=brake_demand))
+        # Lock-step ordering: the command computed from the state after step k must act in
+        # step k+1, so sim_node must take it before the next ~/step request. Its one executor
+        # thread passes commands and requests to the plant thread in the order it takes them,
+        # and of what is waiting it takes messages before requests; but a message and a
+        # request sent right after it arrive through different readers, and the request
+        # overtakes the message now and then (a few times per thousand steps when stepping at
+        # once). sim_node does not acknowledge commands (its diagnostics come once per wall
+        # second; a reliable publisher's wait_for_all_acked waits for the middleware's periodic
+        # heartbeat, seconds per step). One cheap round trip through the plant's executor (an
+        # empty get_parameters call) gives the commands that much head start, so they are
+        # waiting in the plant's readers when the ~/step request arrives.
+        self._call(self._param_client, GetParameters.Request(names=[]),
+                   f"{self._plant}/get_parameters")
+
+    # ------------------------------------------------------------------ the loop
+
+    def run(self) -> None:
+        """Control the plant until ``duration_s`` of simulated time has passed."""
+        dt_s = self._connect()
+        log = self.get_logger()
+        log.info(f"driving {self._plant} in lock-step every {dt_s:g} s to "
+                 f"{self.law.target_m_s * KMH_PER_M_S:g} km/h")
+        steps, report_every = 0, max(1, round(10.0 / dt_s))
+        # the first step runs with the plant's initial inputs (traction and brake off)
+        while self.duration_s <= 0.0 or steps * dt_s < self.duration_s - 1e-9:
+            self._step()
+            steps += 1
+            traction, brake = self.law.update(self._head_speed_m_s, dt_s)
+            self._send(traction, brake)
+            if steps % report_every == 0:
+                log.info(f"t = {steps * dt_s:6.1f} s: {self._head_speed_m_s * KMH_PER_M_S:5.1f}"
+                         f" km/h, traction {traction:+.2f}, brake demand {brake:.2f}")
+        log.info(f"done after {steps} steps ({steps * dt_s:g} s simulated)")
+
+    def close(self) -> None:
+        """Release the executor and destroy the node."""
+        self._spinner.shutdown()
+        self.destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the controller; 0 after ``duration_s`` or Ctrl-C, 1 when the plant fails us.
+
+    Parameters
+    ----------
+    args : list of str, optional
+        Command-line arguments (default: ``sys.argv``).
+
+    Returns
+    -------
+    int
+        Exit status.
+    """
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = SpeedController()
+        node.run()
+        return 0
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0
+    except (RuntimeError, TimeoutError) as exc:
+        rclpy.logging.get_logger("speed_controller").error(str(exc))
+        return 1
+    finally:
+        if node is not None:
+            node.close()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
