@@ -31,6 +31,7 @@ from __future__ import annotations
 import importlib
 import io
 import json
+import math
 import os
 import queue
 import struct
@@ -610,6 +611,20 @@ class BagWriter:
             if time.monotonic() - self._last_flush >= self.flush_interval_s:
                 return self._seal_chunk()
             return False
+
+    def seconds_until_flush(self) -> float:
+        """Wall time until :meth:`flush_if_due` would hand over the chunk in memory [s].
+
+        Lets an otherwise idle caller wake up in time; ``inf`` when nothing is waiting.
+
+        Returns
+        -------
+        float
+        """
+        with self._lock:
+            if self._closed or not self._chunk:
+                return math.inf
+            return max(0.0, self._last_flush + self.flush_interval_s - time.monotonic())
 
     def flush(self) -> None:
         """Write everything recorded so far to the file and wait until it is there.

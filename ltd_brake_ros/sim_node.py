@@ -38,6 +38,7 @@ from __future__ import annotations
 import array
 import math
 import queue
+import signal
 import sys
 import threading
 import time
@@ -106,6 +107,13 @@ MAX_REAL_TIME_FACTOR = 1000.0
 TIME_EPS_S = 1e-9
 #: Pacing lateness samples kept for statistics (bounded: memory stays flat on long runs).
 LATENESS_SAMPLES = 10_000
+#: A command flood keeps the executor thread busy. From this long before a chunk is due until
+#: the plant has published it, a receiving callback steps aside (sleeps: frees the GIL and
+#: the CPU) so the plant keeps its deadline on a loaded machine [s]; checked every
+#: YIELD_POLL_S, for at most YIELD_MAX_S per message.
+YIELD_LEAD_S = 0.002
+YIELD_POLL_S = 0.0005
+YIELD_MAX_S = 0.01
 
 
 # --------------------------------------------------------------------------- parameters
@@ -391,6 +399,9 @@ class SimNode(Node):
         try:
             self._setup()
         except BaseException:
+            # e.g. SIGINT during start-up: a bag already opened is finished, not left cut
+            if getattr(self, "_recorder", None) is not None:
+                self._close_recording()
             self.destroy_node()
             raise
 
@@ -459,6 +470,10 @@ class SimNode(Node):
         self._record_runs = 0
         self._rejected: dict[str, int] = {}
         self._next_reject_log: dict[str, float] = {}
+        #: Input messages handled (received or self-issued), accepted or rejected; each one is
+        #: recorded, so with recording on the bag holds exactly this many input messages.
+        self._handled = 0
+        self._finish_reason = ""
         self._auto_brake_done = False
         self._lut_warned = False
         self._paused = False
@@ -508,7 +523,24 @@ class SimNode(Node):
     def _receiver(self, topic: str) -> Callable[[Any], None]:
         def receive(msg):
             self._submit(lambda: self._on_input(topic, msg))
+            self._yield_to_plant()
         return receive
+
+    def _yield_to_plant(self) -> None:
+        """On the executor thread: wait while a paced chunk is due (see YIELD_LEAD_S).
+
+        Reads the plant's schedule without a lock: a torn read costs at most one needless
+        or missed pause, never a wrong chunk. The commands themselves are never dropped here;
+        under a flood DDS drops what the subscription queue (KEEP_LAST 10) cannot hold.
+        """
+        if self._rtf <= 0.0 or not self._free_running():
+            return
+        end = time.monotonic() + YIELD_MAX_S
+        while True:
+            now = time.monotonic()
+            if now < self._due() - YIELD_LEAD_S or now >= end:
+                return
+            time.sleep(YIELD_POLL_S)
 
     # ------------------------------------------------------------------ public API
 
@@ -565,6 +597,7 @@ class SimNode(Node):
     def _on_input(self, topic: str, msg: Any) -> None:
         """Handle a received (or self-issued) input message on the plant thread."""
         name = self._input_subscriptions[topic].topic_name
+        self._handled += 1
         if self._recorder is not None:
             self._record(name, serialize_message(msg))
         for tap in self._taps:
@@ -612,6 +645,7 @@ class SimNode(Node):
                             brake_params=str(self.inputs.params.source),
                             coupler_lut=str(self.inputs.lut.source),
                             track=str(self.inputs.track.source))
+        rec = None
         try:
             rec = BagWriter(folder, metadata=meta)
             for publisher in self._outputs.values():
@@ -620,8 +654,18 @@ class SimNode(Node):
             for sub in self._input_subscriptions.values():
                 rec.add_topic(sub.topic_name, type_name(sub.msg_type),
                               qos_profiles_yaml(sub.qos_profile))
-        except (OSError, ValueError) as exc:
-            raise StartupError("record_dir", f"cannot record to {folder}: {exc}") from None
+        except BaseException as exc:
+            # a half-opened bag (disk full, SIGINT at start-up) is closed: no writer thread
+            # or open file is left behind, and the folder holds no unfinished file if it can
+            # be helped
+            if rec is not None:
+                try:
+                    rec.close()
+                except OSError:
+                    pass
+            if isinstance(exc, (OSError, ValueError)):
+                raise StartupError("record_dir", f"cannot record to {folder}: {exc}") from None
+            raise
         self._recorder = rec
         self._recording_error = None
         self.get_logger().info(f"recording to {rec.folder}")
@@ -641,6 +685,12 @@ class SimNode(Node):
             f"recording to {rec.folder} stopped: {self._recording_error}; the plant keeps "
             f"running; {rec.messages_on_disk} messages are on disk (ltd-brake recover "
             f"{rec.folder} makes it a complete bag)")
+        # release the writer thread and the file; after a write error close() writes nothing
+        # more, so the complete chunks stay exactly as they are
+        try:
+            rec.close()
+        except OSError:
+            pass
 
     def _flush_recording(self) -> None:
         if self._recorder is not None:
@@ -726,6 +776,9 @@ class SimNode(Node):
                         self._paced_chunk(due)
                         continue
                     timeout = min(timeout, due - now)
+                if self._recorder is not None:
+                    # idle (paused, lock-step, slow pace): still flush within the interval
+                    timeout = min(timeout, self._recorder.seconds_until_flush())
                 self._wake.wait(max(timeout, 0.0))
         except Exception as exc:  # noqa: BLE001
             if self.context.ok() and not self._quit.is_set():
@@ -778,10 +831,12 @@ class SimNode(Node):
                          "counted in diagnostics")
         if 0.0 <= self._max_sim_time_s <= snap.time_s + TIME_EPS_S:
             log.info(f"max_sim_time_s = {self._max_sim_time_s:g} s reached; shutting down")
+            self._finish_reason = "max_sim_time_s reached"
             self.finished.set()
         if sim.stop_time_s is not None and \
                 0.0 <= self._shutdown_after_stop_s <= snap.time_s - sim.stop_time_s + TIME_EPS_S:
             log.info(f"{self._shutdown_after_stop_s:g} s after the stop; shutting down")
+            self._finish_reason = "shutdown_after_stop_s reached"
             self.finished.set()
         return True
 
@@ -797,6 +852,9 @@ class SimNode(Node):
         self.get_logger().error(f"simulation failed at t = {self._sim.time_s:.3f} s: {reason}; "
                                 "the plant stopped advancing, call ~/reset to recover")
         self._publish_diagnostics(time.monotonic())
+        # the run is over: finish its bag (ending with the ERROR above) so that it is complete
+        # and readable now, not only once the node exits; ~/reset starts the next one
+        self._close_recording()
 
     # ------------------------------------------------------------------ diagnostics
 
@@ -817,7 +875,7 @@ class SimNode(Node):
         if self._failure:
             level, state, message = DiagnosticStatus.ERROR, "failed", self._failure
         elif self.finished.is_set():
-            level, state, message = DiagnosticStatus.OK, "finished", "max_sim_time_s reached"
+            level, state, message = DiagnosticStatus.OK, "finished", self._finish_reason
         else:
             state = "lockstep" if self._lockstep else "paused" if self._paused else "running"
             level, message = DiagnosticStatus.OK, state
@@ -844,8 +902,8 @@ class SimNode(Node):
             "brake_demand": f"{self._brake_demand:g}",
             "traction_command": f"{self._traction:g}",
             "rejected_inputs": str(sum(self._rejected.values())),
-            "recording": "off" if self._recorder is None and not self._recording_error
-            else "failed" if self._recording_error else str(self._recorder.folder),
+            "inputs_handled": str(self._handled),
+            "recording": self._recording_state(),
         }
         if self._recording_error:
             values["recording_error"] = self._recording_error
@@ -863,6 +921,14 @@ class SimNode(Node):
         diag = DiagnosticArray(status=[status])
         diag.header.stamp = time_msg(self._stamp_ns)
         self._emit(DIAGNOSTICS_TOPIC, diag)
+
+    def _recording_state(self) -> str:
+        if self._recorder is not None:
+            return str(self._recorder.folder)
+        if self._recording_error:
+            return "failed"
+        # a bag finished after a simulator failure: the next one starts with ~/reset
+        return "finished" if self._record_base else "off"
 
     # ------------------------------------------------------------------ services
 
@@ -882,10 +948,15 @@ class SimNode(Node):
 
     def _reset(self) -> tuple[bool, str]:
         snap = self._sim.reset()
-        if self._recorder is not None:
-            # one run per bag: the report assumes it
+        if self._record_base:
+            # one run per bag (the report assumes it): finish the current one, unless a
+            # simulator failure or a write error already ended it, and start <record_dir>_2, ...
             self._close_recording()
-            self._open_recording(self._record_base)
+            try:
+                self._open_recording(self._record_base)
+            except StartupError as exc:  # e.g. the disk is still full: run without recording
+                self._recording_error = exc.reason
+                self.get_logger().error(f"{exc}; the plant runs on without recording")
         self._emergency = False
         self._brake_demand = 0.0
         self._traction = 0.0
@@ -985,11 +1056,34 @@ def main(args: list[str] | None = None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
     finally:
+        _finish_despite_signals()
         if node is not None:
             node.close()
             rclpy.logging.get_logger(NODE_NAME).info(
                 f"stopped at t = {node.sim_time_s:.3f} s after {node.stats.chunks} chunks")
         rclpy.try_shutdown()
+        _finish_despite_signals()  # shutting rclpy down may have put its handlers back
+
+
+def _finish_despite_signals() -> None:
+    """Let a further SIGINT or SIGTERM only log, so that it cannot cut the recording short.
+
+    Without this, a second Ctrl-C (or a SIGINT after a SIGTERM) that arrives while the bag is
+    being closed raises KeyboardInterrupt inside the closing and leaves the file without its
+    summary. SIGKILL still ends the process at once.
+    """
+    def note(signum, _frame):
+        text = (f"{signal.Signals(signum).name} ignored: finishing the recording and shutting "
+                "down (SIGKILL aborts)")
+        try:
+            rclpy.logging.get_logger(NODE_NAME).warn(text)
+        except Exception:  # noqa: BLE001 - logging already shut down: never fail here
+            print(f"[WARN] [{NODE_NAME}]: {text}", file=sys.stderr)
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            signal.signal(sig, note)
+        except ValueError:  # not the main thread (node embedded elsewhere): nothing to guard
+            pass
 
 
 if __name__ == "__main__":

@@ -304,7 +304,6 @@ class Simulator:
         self._x_cmd = 0.0
         self.stop_time_s: float | None = None
         self.stopping_distance_m: float | None = None
-        self.events: list[Event] = []
         self._reported_lut = np.zeros(nc, bool)
         self._failed = False
         return self.snapshot()
@@ -481,7 +480,6 @@ class Simulator:
                     "stopping_distance_m": self.stopping_distance_m,
                     "stop_time_s": self.time_s - self.command_time_s}))
         self._report_lut_exits(events)
-        self.events.extend(events)
         return self.snapshot(tuple(events))
 
     def _report_lut_exits(self, events: list) -> None:

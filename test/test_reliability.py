@@ -1,0 +1,593 @@
+"""What a recorded ``sim_node`` survives: signals, SIGKILL, a full disk, hostile commands, a
+command flood, bad parameter values, a simulator failure, and a long run (memory).
+
+Random moments are drawn from fixed seeds, so a failing trial can be run again as it was. Wall
+times are only ever compared with generous margins, or as ratios measured in one run: the
+machine is small and shared.
+"""
+from __future__ import annotations
+
+import math
+import os
+import random
+import re
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+from conftest import executable
+from node_helpers import (ARRAY_TOPICS, SIGNALS, diagnostics_of, level_int, limited_argv,
+                          node_argv, read_mcap, rss_kb, signal_group, wait_for_output)
+
+pytestmark = pytest.mark.ros
+
+rclpy = pytest.importorskip("rclpy")
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
+from rclpy.serialization import deserialize_message  # noqa: E402
+from rosbags.rosbag2 import Reader as RosbagsReader  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from std_msgs.msg import Float64  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
+
+from ltd_brake_ros.bag import TruncatedBagWarning, bag_info, read_bag, recover  # noqa: E402
+
+#: Trials run at the same time (each node is mostly one busy thread; two cores).
+PARALLEL = 3
+#: A message a subscriber received this long before a SIGKILL must be in the recovered bag:
+#: the recorder flushes at least every 1 s of wall time; the other second is a margin for a
+#: loaded machine (three nodes on two cores: flushes were seen to come 1.45 s apart).
+FLUSHED_AFTER_S = 2.0
+
+
+def _clock_ns(msg: Clock) -> int:
+    return msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+
+
+def _diag(probe, node: str) -> dict:
+    found = diagnostics_of(probe.received["/diagnostics"][-5:], node)
+    return found[-1] if found else {}
+
+
+def _wait_diag(probe, node: str, predicate, timeout_s: float, what: str) -> dict:
+    probe.spin_until(lambda: predicate(_diag(probe, node)), timeout_s, what)
+    return _diag(probe, node)
+
+
+def _quiet_bag_info(path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TruncatedBagWarning)
+        return bag_info(path)
+
+
+# --------------------------------------------------------------------------- signal trials
+
+
+@dataclass
+class Trial:
+    """One recorded run ended by a signal at a random moment."""
+
+    index: int
+    sig: int
+    rtf: float
+    delay_s: float
+    ns: str
+    folder: Path
+    #: The moment is counted from the node's "recording to" line, or from the first /clock
+    #: the probe heard (then the flush guarantee can be checked against what it heard).
+    from_heard: bool = False
+    proc: object = None
+    started_at: float = 0.0
+    ready_at: float | None = None
+    kill_at: float | None = None
+    killed_at: float | None = None
+    clocks: list = field(default_factory=list)  # (monotonic arrival time, stamp ns)
+    subscription: object = None
+
+    def seen_before(self, t: float) -> int | None:
+        """Newest /clock stamp [ns] the probe had received by wall time ``t``."""
+        stamps = [ns for at, ns in self.clocks if at <= t]
+        return max(stamps) if stamps else None
+
+
+def _make_trials(seed: int, signals: tuple[int, ...], n: int, tmp_path: Path, tag: str,
+                 heard_every: int = 0):
+    """``n`` trials cycling through ``signals`` and real-time factors 0 and 5.
+
+    With ``heard_every`` = k, every k-th trial counts its moment, 2.1-3.2 s, from the first
+    /clock heard; the others count 0.3-2 s from the start of the recording.
+    """
+    rng = random.Random(seed)
+    trials = []
+    for i in range(n):
+        sig = signals[i % len(signals)]
+        rtf = (0.0, 5.0)[(i // len(signals)) % 2]  # as fast as possible, and paced
+        heard = bool(heard_every) and i % heard_every == heard_every - 1
+        delay = rng.uniform(FLUSHED_AFTER_S + 0.1, 3.2) if heard else rng.uniform(0.3, 2.0)
+        trials.append(Trial(i, sig, rtf, delay, f"/{tag}{i}", tmp_path / f"{tag}{i}", heard))
+    return trials
+
+
+def _run_trials(trials: list[Trial], processes, probe) -> None:
+    """Start the trials, at most PARALLEL at a time; signal each at its moment; wait for all.
+
+    The moment is ``delay_s`` after the node logged that it records (so after start-up), or
+    after the probe first heard it. While a node runs, the probe keeps the /clock stamps it
+    hears (best effort: it never slows the node down).
+    """
+    pending, running = list(trials), []
+    qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+    deadline = time.monotonic() + 60 * len(trials)
+    while pending or running:
+        assert time.monotonic() < deadline, "signal trials did not finish"
+        while pending and len(running) < PARALLEL:
+            trial = pending.pop(0)
+            trial.subscription = probe.node.create_subscription(
+                Clock, f"{trial.ns}/clock",
+                lambda msg, t=trial: t.clocks.append((time.monotonic(), _clock_ns(msg))), qos)
+            trial.proc = processes.start(
+                *node_argv(trial.ns, "record:=true", f"record_dir:={trial.folder}",
+                           f"real_time_factor:={trial.rtf}"), name=trial.ns.strip("/"))
+            trial.started_at = time.monotonic()
+            running.append(trial)
+        probe.spin_for(0.01)
+        now = time.monotonic()
+        for trial in list(running):
+            proc = trial.proc
+            if trial.ready_at is None:
+                if (trial.clocks if trial.from_heard else "recording to" in proc.output()):
+                    trial.ready_at = now
+                    trial.kill_at = now + trial.delay_s
+                elif proc.popen.poll() is not None:
+                    pytest.fail(f"trial {trial.index} exited early:\n{proc.output()}")
+                elif now - trial.started_at > 60:
+                    pytest.fail(f"trial {trial.index}: not ready after 60 s:\n{proc.output()}")
+            elif trial.killed_at is None and now >= trial.kill_at:
+                signal_group(proc, trial.sig)
+                trial.killed_at = time.monotonic()
+            elif trial.killed_at is not None and proc.popen.poll() is not None:
+                probe.node.destroy_subscription(trial.subscription)
+                running.remove(trial)
+            elif trial.killed_at is not None and now - trial.killed_at > 30:
+                pytest.fail(f"trial {trial.index}: no exit 30 s after "
+                            f"{SIGNALS[trial.sig]}:\n{proc.output()}")
+
+
+def _describe(trial: Trial) -> str:
+    anchor = "the first /clock heard" if trial.from_heard else "the recording started"
+    return (f"trial {trial.index}: {SIGNALS[trial.sig]} {trial.delay_s:.2f} s after {anchor}, "
+            f"real_time_factor {trial.rtf:g}")
+
+
+@pytest.mark.slow
+def test_sigint_and_sigterm_at_random_moments_always_finish_the_file(processes, probe,
+                                                                      tmp_path):
+    trials = _make_trials(20250101, (signal.SIGINT, signal.SIGTERM), 20, tmp_path, "term")
+    _run_trials(trials, processes, probe)
+    for trial in trials:
+        what = _describe(trial)
+        out = trial.proc.output()
+        assert trial.proc.popen.returncode == 0, f"{what}: exit status\n{out}"
+        assert "Traceback" not in out, f"{what}\n{out}"
+        assert "recording finished" in out, f"{what}\n{out}"
+        assert (trial.folder / "metadata.yaml").is_file(), what
+        summary, recorded = read_mcap(trial.folder)
+        assert summary is not None and summary.statistics is not None, what
+        assert summary.statistics.message_count == sum(map(len, recorded.values())), what
+        with RosbagsReader(trial.folder) as reader:
+            assert reader.message_count == summary.statistics.message_count, what
+        # a chunk is published topic by topic: a signal between two of them leaves one short
+        counts = [len(recorded[f"{trial.ns}/{t}"]) for t in (*ARRAY_TOPICS, "clock")]
+        assert counts[0] >= 1 and max(counts) - min(counts) <= 1, f"{what}: {counts}"
+        # nothing the subscriber heard is missing: the file was finished, not cut
+        last_heard = trial.seen_before(trial.killed_at + 60)
+        if last_heard is not None:
+            assert recorded[f"{trial.ns}/clock"][-1][0] >= last_heard, what
+
+
+@pytest.mark.slow
+def test_sigkill_at_random_moments_keeps_every_flushed_chunk(processes, probe, tmp_path):
+    trials = _make_trials(20250102, (signal.SIGKILL,), 20, tmp_path, "kill", heard_every=2)
+    _run_trials(trials, processes, probe)
+    recover_cli = executable("ltd-brake")
+    checked = []
+    for trial in trials:
+        what = _describe(trial)
+        assert trial.proc.popen.returncode == -signal.SIGKILL, what
+        assert not (trial.folder / "metadata.yaml").exists(), what
+        # the truncated file, scanned up to its last complete chunk
+        scanned = _quiet_bag_info(trial.folder)
+        assert not scanned.complete, what
+        if trial.index % 5 == 0:  # the command line, now and then (it costs a second)
+            dst = trial.folder.with_name(trial.folder.name + "_recovered")
+            cli = subprocess.run([recover_cli, "recover", str(trial.folder), str(dst)],
+                                 capture_output=True, text=True, timeout=60)
+            assert cli.returncode == 0, f"{what}: {cli.stdout}{cli.stderr}"
+            assert f"recovered {scanned.message_count} messages" in cli.stdout, cli.stdout
+            out = dst
+        else:
+            res = recover(trial.folder)
+            assert res["messages"] == scanned.message_count and not res["complete"], what
+            out = Path(res["output"])
+        summary, recorded = read_mcap(out)
+        assert summary is not None and (out / "metadata.yaml").is_file(), what
+        total = summary.statistics.message_count
+        assert total >= scanned.message_count, what
+        with RosbagsReader(out) as reader:
+            assert reader.message_count == total, what
+        # every chunk on disk before the kill survived: what the subscriber heard a flush
+        # interval (and a margin) before the kill is in the recovered bag
+        heard = trial.seen_before(trial.killed_at - FLUSHED_AFTER_S)
+        clock = recorded.get(f"{trial.ns}/clock", [])
+        if heard is not None:
+            assert clock and clock[-1][0] >= heard, (
+                f"{what}: the subscriber heard t = {heard / 1e9:.2f} s "
+                f"{FLUSHED_AFTER_S} s before the kill, the bag ends at "
+                f"{clock[-1][0] / 1e9 if clock else None} s")
+        # and the recovered run reads like any other: every clock tick from 0, in order
+        stamps = [t for t, _, _ in clock]
+        assert stamps == [k * 20_000_000 for k in range(len(stamps))], what
+        if trial.from_heard:
+            assert heard is not None, f"{what}: the probe heard nothing in time"
+            checked.append((stamps[-1] - heard) / 1e9)
+        print(f"{what}: {total} messages recovered, the bag ends at t = "
+              f"{stamps[-1] / 1e9 if stamps else 0:.2f} s; heard {FLUSHED_AFTER_S} s before "
+              f"the kill: t = {heard / 1e9 if heard is not None else None}")
+    print(f"recovered bag beyond what was heard {FLUSHED_AFTER_S} s before the kill: "
+          f"{min(checked):.2f}..{max(checked):.2f} s of simulated time")
+
+
+@pytest.mark.slow
+def test_a_second_signal_while_finishing_does_not_cut_the_file(processes, tmp_path):
+    """Ctrl-C pressed twice: the second one lands while the recording is being finished."""
+    rng = random.Random(20250103)
+    procs = []
+    for i, gap_s in enumerate(sorted(rng.uniform(0.0, 0.06) for _ in range(4))):
+        folder = tmp_path / f"twice{i}"
+        procs.append((gap_s, folder, processes.start(
+            *node_argv(f"/twice{i}", "record:=true", f"record_dir:={folder}",
+                       "real_time_factor:=0.0"), name=f"twice{i}")))
+    for gap_s, folder, proc in procs:
+        wait_for_output(proc, "recording to")
+    time.sleep(1.0)
+    # SIGINT twice, or SIGTERM then SIGINT (SIGTERM itself never raises in Python)
+    firsts = (signal.SIGINT, signal.SIGTERM, signal.SIGINT, signal.SIGTERM)
+    for first, (gap_s, folder, proc) in zip(firsts, procs):
+        signal_group(proc, first)
+        time.sleep(gap_s)
+        signal_group(proc, signal.SIGINT)
+    for first, (gap_s, folder, proc) in zip(firsts, procs):
+        what = f"SIGINT {gap_s * 1e3:.0f} ms after {SIGNALS[first]}"
+        status = proc.wait(30)
+        out = proc.output()
+        assert status == 0 and "Traceback" not in out, f"{what}: exit {status}\n{out}"
+        summary, _ = read_mcap(folder)
+        assert summary is not None and (folder / "metadata.yaml").is_file(), what
+
+
+# --------------------------------------------------------------------------- full disk
+
+
+def test_full_disk_stops_the_recording_not_the_plant(processes, probe, tmp_path):
+    ns, node = "/full", "/full/sim_node"
+    folder = tmp_path / "full"
+    limit = 200_000
+    probe.subscribe(f"{ns}/clock", Clock, depth=100)
+    probe.subscribe("/diagnostics", DiagnosticArray)
+    argv = node_argv(ns, "record:=true", f"record_dir:={folder}", "real_time_factor:=2.0")
+    env = dict(os.environ, ROS_LOG_DIR=str(tmp_path / "roslog"))
+    proc = processes.start(*limited_argv(argv, limit), name="full", env=env)
+    wait_for_output(proc, "stopped: OSError", timeout_s=90)
+    out = proc.output()
+    line = next(s for s in out.splitlines() if "stopped: OSError" in s)
+    # one clear line: what, where, why, what still runs, how to get the data back
+    assert str(folder) in line and "File too large" in line, line
+    assert "the plant keeps running" in line and "ltd-brake recover" in line, line
+    on_disk = int(re.search(r"(\d+) messages are on disk", line).group(1))
+    assert on_disk > 0, line
+
+    # the plant keeps its pace: /clock advances at real_time_factor 2 (generous margins)
+    clocks = probe.received[f"{ns}/clock"]
+    probe.spin_until(lambda: clocks, 30, "/clock")
+    probe.spin_for(0.5)  # take what queued up, so the newest stamp is the current one
+    t0, s0 = time.monotonic(), _clock_ns(clocks[-1])
+    probe.spin_for(3.0)
+    t1, s1 = time.monotonic(), _clock_ns(clocks[-1])
+    assert (s1 - s0) / 1e9 / (t1 - t0) == pytest.approx(2.0, rel=0.25)
+    diag = _wait_diag(probe, node, lambda d: d.get("recording") == "failed", 10,
+                      "diagnostics to report the failed recording")
+    assert "File too large" in diag["recording_error"]
+    assert diag["_level"] == level_int(DiagnosticStatus.WARN) and diag["state"] == "running"
+    assert proc.popen.poll() is None
+    # ~/reset starts the next run in a new bag (this limit is per file, so it can)
+    second = tmp_path / "full_2"
+    reply = probe.call(Trigger, f"{node}/reset", Trigger.Request())
+    assert reply.success, reply.message
+    _wait_diag(probe, node, lambda d: d.get("recording") == str(second), 10,
+               "diagnostics to report the new bag")
+    assert proc.stop(signal.SIGINT) == 0, proc.output()
+    assert "Traceback" not in proc.output()
+    assert bag_info(second).complete
+
+    # what was written is intact: every complete chunk recovers, the clock runs from 0 on
+    file = next(folder.glob("*.mcap"))
+    assert file.stat().st_size <= limit
+    assert not (folder / "metadata.yaml").exists()
+    res = recover(folder)
+    assert res["messages"] == on_disk and not res["complete"], res
+    summary, recorded = read_mcap(Path(res["output"]))
+    assert summary.statistics.message_count == on_disk
+    stamps = [t for t, _, _ in recorded[f"{ns}/clock"]]
+    assert stamps and stamps == [k * 20_000_000 for k in range(len(stamps))]
+
+
+# --------------------------------------------------------------------------- hostile commands
+
+
+BAD_DEMANDS = (math.nan, math.inf, -math.inf, -0.1, 1.5, 1e308)
+BAD_TRACTIONS = (math.nan, math.inf, -math.inf, -1.5, 2.0)
+
+
+def test_hostile_values_and_parameters_are_rejected_while_the_plant_keeps_time(
+        processes, probe, tmp_path):
+    ns, node = "/hostile", "/hostile/sim_node"
+    folder = tmp_path / "hostile"
+    probe.subscribe(f"{ns}/clock", Clock, depth=1000)
+    probe.subscribe("/diagnostics", DiagnosticArray)
+    proc = processes.start(*node_argv(ns, "record:=true", f"record_dir:={folder}",
+                                      "real_time_factor:=1.0"), name="hostile")
+    _wait_diag(probe, node, bool, 60, f"diagnostics of {node}:\n{proc.output()}")
+
+    # parameter values the node must refuse, each with a reason; the old value stays
+    refused = {"real_time_factor": (math.inf, 1e9, 2, "fast"),
+               "steps_per_call": (0, -3, 1.5),
+               "record": (False,), "record_dir": ("/elsewhere",), "lockstep": (True,),
+               "consist": ("scenario_7",)}
+    for name, values in refused.items():
+        for value in values:
+            (result,) = probe.set_parameters(node, **{name: value})
+            assert not result.successful and result.reason, (name, value)
+    assert probe.get_parameters(node, *refused) == [1.0, 1, True, str(folder), False,
+                                                    "scenario_6"]
+
+    # a controller gone mad, for three seconds: every bad value many times, then good ones
+    clocks = probe.received[f"{ns}/clock"]
+    probe.spin_until(lambda: clocks, 30, "/clock")
+    first_diag = len(probe.received["/diagnostics"])
+    start_wall, start_sim = time.monotonic(), _clock_ns(clocks[-1])
+    sent = {"brake_demand": 0, "traction_command": 0}
+    while time.monotonic() - start_wall < 3.0:
+        for v in BAD_DEMANDS:
+            probe.publish(f"{ns}/brake_demand", Float64(data=v))
+        for v in BAD_TRACTIONS:
+            probe.publish(f"{ns}/traction_command", Float64(data=v))
+        sent["brake_demand"] += len(BAD_DEMANDS)
+        sent["traction_command"] += len(BAD_TRACTIONS)
+        probe.spin_for(0.02)
+    # the newest samples survive any queue overflow: these two reach the node in any case
+    probe.publish(f"{ns}/brake_demand", Float64(data=0.5))
+    probe.publish(f"{ns}/traction_command", Float64(data=0.3))
+    sent = {k: v + 1 for k, v in sent.items()}
+    diag = _wait_diag(probe, node, lambda d: d.get("brake_demand") == "0.5"
+                      and d.get("traction_command") == "0.3", 20,
+                      "the last good values in diagnostics")
+    wall = time.monotonic() - start_wall
+    sim = (_clock_ns(clocks[-1]) - start_sim) / 1e9
+    # the deadline held: simulated time kept up with the wall clock, no overruns to speak of
+    assert sim / wall == pytest.approx(1.0, rel=0.05), (sim, wall)
+    during = diagnostics_of(probe.received["/diagnostics"][first_diag:], node)
+    assert during and int(during[-1]["chunk_overruns"]) <= 2, during[-1]
+    assert all(float(d["achieved_real_time_factor"]) == pytest.approx(1.0, rel=0.1)
+               for d in during[1:]), [d["achieved_real_time_factor"] for d in during]
+
+    # logged, but throttled: one warning per topic per 2 s, not one per message
+    out = proc.output()
+    for topic in ("brake_demand", "traction_command"):
+        lines = [s for s in out.splitlines() if f"{ns}/{topic}: rejected" in s]
+        assert 1 <= len(lines) <= 2 + wall / 2.0, (topic, len(lines))
+    assert proc.stop(signal.SIGINT) == 0 and "Traceback" not in proc.output()
+    # every command the node took is in the recording, rejected ones included; the counts in
+    # diagnostics are those of the recording (DDS may have dropped some when its reader
+    # queue, KEEP_LAST 10, overflowed: then they never reached the node)
+    summary, recorded = read_mcap(folder)
+    got = {t: [deserialize_message(d, Float64).data for _, _, d in recorded[f"{ns}/{t}"]]
+           for t in sent}
+    bad = sum(1 for v in got["brake_demand"] if not 0.0 <= v <= 1.0) \
+        + sum(1 for v in got["traction_command"] if not -1.0 <= v <= 1.0)
+    assert int(diag["rejected_inputs"]) == bad
+    assert int(diag["inputs_handled"]) == sum(map(len, got.values()))
+    for topic, n in sent.items():
+        assert 0.5 * n <= len(got[topic]) <= n, (topic, len(got[topic]), n)
+    print(f"\nhostile: sent {sum(sent.values())} values ({sum(sent.values()) - 2} bad) in "
+          f"{wall:.1f} s, node took {diag['inputs_handled']} and rejected {bad}; pace "
+          f"{sim / wall:.3f}; overruns {during[-1]['chunk_overruns']}")
+
+
+FLOOD = textwrap.dedent("""\
+    import sys, time
+    import rclpy
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import Bool
+    topic, rate, seconds = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
+    rclpy.init()
+    node = rclpy.create_node("flood")
+    # what a controller would use: reliable, keep the last 10
+    pub = node.create_publisher(Bool, topic, QoSProfile(depth=10,
+                                reliability=ReliabilityPolicy.RELIABLE))
+    while pub.get_subscription_count() == 0:
+        time.sleep(0.01)
+    time.sleep(0.5)
+    msg = Bool(data=True)
+    print("flooding", flush=True)
+    sent, start = 0, time.monotonic()
+    while True:
+        elapsed = time.monotonic() - start
+        if elapsed >= seconds:
+            break
+        for _ in range(min(int(elapsed * rate) + 1 - sent, 1000)):
+            pub.publish(msg)
+            sent += 1
+    elapsed = time.monotonic() - start
+    print(f"sent {sent} in {elapsed:.3f} s", flush=True)
+    time.sleep(1.0)  # reliable delivery of the last ones
+    node.destroy_node()
+    rclpy.shutdown()
+""")
+#: Flood on brake_command: target rate [1/s] and duration [s].
+FLOOD_RATE, FLOOD_S = 10_000, 10.0
+
+
+@pytest.mark.slow
+def test_command_flood_keeps_the_pace_and_every_handled_command_is_recorded(
+        processes, probe, tmp_path):
+    ns, node = "/flood", "/flood/sim_node"
+    folder = tmp_path / "flood"
+    probe.subscribe(f"{ns}/clock", Clock, depth=1000)
+    probe.subscribe("/diagnostics", DiagnosticArray)
+    proc = processes.start(*node_argv(ns, "record:=true", f"record_dir:={folder}",
+                                      "real_time_factor:=1.0"), name="flood")
+    _wait_diag(probe, node, bool, 60, f"diagnostics of {node}:\n{proc.output()}")
+    clocks = []
+    probe.node.create_subscription(
+        Clock, f"{ns}/clock", lambda m: clocks.append((time.monotonic(), _clock_ns(m))),
+        QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+    flood = processes.start(sys.executable, "-c", FLOOD, f"{ns}/brake_command",
+                            str(FLOOD_RATE), str(FLOOD_S), name="flooder")
+    probe.spin_until(lambda: "flooding" in flood.output(), 60, "the flood to start")
+    started = time.monotonic()
+    first_diag = len(probe.received["/diagnostics"])
+    probe.spin_until(lambda: "sent" in flood.output(), FLOOD_S + 30, "the flood to end")
+    ended = time.monotonic()
+    assert flood.wait(30) == 0, flood.output()
+    sent, took = re.search(r"sent (\d+) in ([\d.]+) s", flood.output()).groups()
+    sent, rate = int(sent), int(sent) / float(took)
+
+    # the pace: simulated time over wall time while the flood ran, from the probe's clock
+    window = [(t, s) for t, s in clocks if started + 1.0 <= t <= ended - 0.5]
+    assert len(window) > 50
+    pace = (window[-1][1] - window[0][1]) / 1e9 / (window[-1][0] - window[0][0])
+    during = diagnostics_of(probe.received["/diagnostics"][first_diag:], node)
+    achieved = [float(d["achieved_real_time_factor"]) for d in during[1:]]
+
+    # the node has worked through its queue when the count stops changing
+    def handled():
+        d = _diag(probe, node)
+        return int(d["inputs_handled"]) if "inputs_handled" in d else -1
+    last, stable = -2, 0
+    while stable < 2:
+        probe.spin_for(1.1)
+        stable, last = (stable + 1, last) if handled() == last else (0, handled())
+    assert proc.stop(signal.SIGINT) == 0 and "Traceback" not in proc.output()
+    summary, recorded = read_mcap(folder)
+    in_bag = len(recorded[f"{ns}/brake_command"])
+    print(f"\nflood: sent {sent} brake_command messages at {rate:.0f}/s for {float(took):.1f} s; "
+          f"node handled {last} ({100 * last / sent:.1f} %), bag holds {in_bag}; pace "
+          f"{pace:.3f} x real time; achieved real_time_factor per second "
+          f"{min(achieved):.3f}..{max(achieved):.3f}; overruns "
+          f"{during[-1]['chunk_overruns'] if during else '?'}")
+    assert in_bag == last, "the recorder lost a command the node handled"
+    assert 0 < last <= sent
+    # the pace held: over the whole flood, and in the typical second
+    assert pace == pytest.approx(1.0, rel=0.05)
+    assert achieved and sorted(achieved)[len(achieved) // 2] == pytest.approx(1.0, rel=0.05)
+
+
+# --------------------------------------------------------------------------- simulator failure
+
+
+def test_simulator_failure_finishes_the_recording_and_reset_starts_a_new_one(
+        ros_context, probe, tmp_path, monkeypatch, capfd):
+    from ltd_brake_ros.simulator import SimulationError
+    from ltd_brake_ros.sim_node import SimNode
+
+    folder = tmp_path / "failing"
+    node = SimNode(context=ros_context, namespace="/failing", parameter_overrides=[
+        Parameter("record", value=True), Parameter("record_dir", value=str(folder)),
+        Parameter("real_time_factor", value=0.0), Parameter("consist", value="scenario_7")])
+    seen = []
+    node.add_tap(lambda topic, msg, stamp_ns, inbound: seen.append((topic, msg)))
+    probe.executor.add_node(node)
+    name = "/failing/sim_node"
+    try:
+        node.start()
+        probe.spin_until(lambda: node.sim_time_s > 2.0, 30, "the free-running plant")
+
+        def diverge(*args, **kwargs):
+            raise SimulationError("forced: Newton iteration did not converge")
+
+        monkeypatch.setattr(node._sim, "advance", diverge)
+        probe.spin_until(lambda: node.failure is not None, 10, "the failure")
+        failed_at = node.sim_time_s
+        probe.spin_until(lambda: (folder / "metadata.yaml").is_file(), 10,
+                         "the recording to be finished")
+        probe.spin_for(1.5)
+        assert node.sim_time_s == failed_at, "the plant kept advancing after the failure"
+        # reported: an ERROR on /diagnostics and in the log
+        errors = [m for t, m in seen if t == "/diagnostics"
+                  and m.status[0].level == DiagnosticStatus.ERROR]
+        assert errors and "forced" in errors[-1].status[0].message
+        assert {"error", "recording"} <= {kv.key for kv in errors[-1].status[0].values}
+        log = capfd.readouterr().err
+        assert "simulation failed" in log and "forced" in log and "~/reset" in log, log
+        # the finished recording is complete and ends with the ERROR the node reported
+        info = bag_info(folder)
+        assert info.complete
+        diags = [deserialize_message(d, DiagnosticArray)
+                 for topic, _t, _n, d in read_bag(folder) if topic == "/diagnostics"]
+        assert diags[-1].status[0].level == DiagnosticStatus.ERROR
+        assert info.end_ns == round(failed_at * 1e9)
+
+        monkeypatch.undo()
+        reply = probe.call(Trigger, f"{name}/reset", Trigger.Request())
+        assert reply.success, reply.message
+        probe.spin_until(lambda: node.sim_time_s > 1.0, 30, "the plant after ~/reset")
+        assert node.failure is None
+        second = tmp_path / "failing_2"
+        assert (second / "failing_2_0.mcap").is_file(), "~/reset did not start a new bag"
+    finally:
+        probe.executor.remove_node(node)
+        node.close()
+    info = bag_info(second)
+    assert info.complete and info.start_ns == 0 and info.message_count > 100
+    assert info.topics["/failing/vehicles/speed"].message_count >= 50
+
+
+# --------------------------------------------------------------------------- memory
+
+
+@pytest.mark.slow
+def test_memory_stays_flat_over_a_long_recorded_run(processes, probe, tmp_path):
+    """Ten minutes of simulated time as fast as possible, recording: the resident set after
+    warm-up (one simulated minute) grows by less than 10 MB. The hour-long version is
+    ``benchmarks/bench_memory.py``."""
+    ns, node = "/mem", "/mem/sim_node"
+    folder = tmp_path / "mem"
+    probe.subscribe("/diagnostics", DiagnosticArray)
+    proc = processes.start(*node_argv(ns, "record:=true", f"record_dir:={folder}",
+                                      "real_time_factor:=0.0", "max_sim_time_s:=600.0",
+                                      "auto_brake_at_s:=30.0"), name="mem")
+    samples = []  # (simulated time [s], RSS [kB])
+    while proc.popen.poll() is None:
+        probe.spin_for(0.25)
+        d = _diag(probe, node)
+        if d and proc.popen.poll() is None:
+            try:
+                samples.append((float(d["sim_time_s"]), rss_kb(proc.pid)))
+            except (FileNotFoundError, ProcessLookupError, RuntimeError):
+                break
+    assert proc.wait(30) == 0, proc.output()
+    warm = next(rss for t, rss in samples if t >= 60.0)
+    end = max(rss for t, rss in samples if t >= 60.0)
+    bag_mb = sum(f.stat().st_size for f in folder.iterdir()) / 1e6
+    print(f"\nmemory: RSS {warm / 1024:.1f} MB after 60 s simulated, peak {end / 1024:.1f} MB "
+          f"up to {samples[-1][0]:.0f} s; bag {bag_mb:.1f} MB")
+    assert samples[-1][0] >= 500.0
+    assert end - warm < 10 * 1024, samples[::10]
