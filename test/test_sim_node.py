@@ -201,15 +201,19 @@ def test_lockstep_runs_are_bit_identical_and_reset_restores_the_start(processes,
 
     def reset(ns):
         # the reset state arrives on every topic once all readers are matched
-        for _ in range(5):
+        for attempt in range(5):
             counts = {t: len(got[f"{ns}/{t}"]) for t in ARRAYS}
             assert probe.call(Trigger, f"{ns}/sim_node/reset", Trigger.Request()).success
             try:
                 probe.spin_until(lambda: all(len(got[f"{ns}/{t}"]) > counts[t] for t in ARRAYS),
-                                 3, "the reset state")
-                return {t: got[f"{ns}/{t}"][-1] for t in ARRAYS}
+                                 10, "the reset state")
             except pytest.fail.Exception:
                 continue
+            if attempt:
+                # an earlier reset's state may still be on its way: let it arrive before the
+                # run counts its messages
+                probe.spin_for(3.0)
+            return {t: got[f"{ns}/{t}"][-1] for t in ARRAYS}
         pytest.fail(f"{ns}: the reset state never arrived")
 
     def run(ns):
