@@ -34,7 +34,7 @@ def executable(name: str) -> str:
     """Path of an installed console script (``sim_node``, ``ltd-brake``, ...)."""
     path = BIN_DIR / name
     if not path.exists():
-        pytest.skip(f"{name} is not installed in {BIN_DIR} (run ./dev.sh setup)")
+        pytest.fail(f"{name} is not installed in {BIN_DIR} (run ./dev.sh setup)")
     return str(path)
 
 

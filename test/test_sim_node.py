@@ -347,7 +347,7 @@ def test_simulation_error_is_reported_and_reset_recovers(ros_context, probe, mon
 def test_colcon_build_installs_what_ros2_run_resolves(tmp_path):
     colcon = Path(sys.executable).parent / "colcon"
     if not colcon.exists():
-        pytest.skip("colcon is not installed")
+        pytest.fail("colcon is not installed (run ./dev.sh setup)")
     src = tmp_path / "src" / "ltd_brake_ros"
     src.mkdir(parents=True)
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc", "*.egg-info")
