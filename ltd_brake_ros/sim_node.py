@@ -993,7 +993,11 @@ class SimNode(Node):
                 return False, f"simulation failed: {self._failure}; call ~/reset"
             done += 1
             self._maybe_diagnostics()
-        return True, f"advanced {done} chunk(s) to t = {self._sim.time_s:.3f} s"
+        # the inputs the chunks ran with, so a controller can check its last command arrived
+        return True, (f"advanced {done} chunk(s) to t = {self._sim.time_s:.3f} s with "
+                      f"emergency={str(self._emergency).lower()} "
+                      f"brake_demand={self._brake_demand:g} traction={self._traction:g} "
+                      f"(inputs handled: {self._handled})")
 
     # ------------------------------------------------------------------ parameters
 

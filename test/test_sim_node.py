@@ -222,6 +222,9 @@ def test_lockstep_runs_are_bit_identical_and_reset_restores_the_start(processes,
         for k in range(1, calls + 1):
             reply = probe.call(Trigger, f"{ns}/sim_node/step", Trigger.Request())
             assert reply.success, reply.message
+            # the reply names the inputs the chunks ran with (auto brake from t = 0.5 s)
+            braked = k * chunks_per_call > 25  # 0.02 s chunks: braked from t = 0.5 s on
+            assert f"emergency={'true' if braked else 'false'}" in reply.message, reply.message
             want_ns = k * chunks_per_call * 20_000_000
             probe.spin_until(
                 lambda: all(len(got[f"{ns}/{t}"]) - start[t] == k * chunks_per_call
