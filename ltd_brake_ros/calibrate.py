@@ -36,6 +36,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .cli import _add_model_options, _model
 from .inputs import (BrakeParams, Consist, CouplerLUT, InputError, load_brake_params,
                      load_consist, load_coupler_lut, load_scenarios)
 
@@ -1026,15 +1027,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--consist", action="append", metavar="FILE",
                    help="add a train (consist YAML) with the UIC curve as its target; "
                         "repeatable; --target uic only")
-    p.add_argument("--params", metavar="FILE",
-                   help="start values and the parameters not fitted (default: "
-                        "config/brake_params/paper.yaml)")
-    p.add_argument("--lut", metavar="FILE",
-                   help="coupler LUT YAML (default: config/couplers/buffer_hook_pugi.yaml)")
-    p.add_argument("--v-th-mm-s", type=float, metavar="MM_S",
-                   help="Eq. 3 threshold speed [mm/s] (default: the LUT file's)")
-    p.add_argument("--step-s", type=float, default=0.01, metavar="S",
-                   help="integration step [s] (default 0.01)")
+    _add_model_options(p)
     p.add_argument("--max-nfev", type=int, default=60, metavar="N",
                    help="most residual evaluations of the optimiser (default 60)")
     p.add_argument("--jobs", type=int, metavar="N",
@@ -1093,8 +1086,7 @@ def cmd_calibrate(args) -> int:
     scenarios = _parse_scenarios(args.scenarios) if args.scenarios else None
     extra = [load_consist(c) for c in args.consist or ()]
     targets = build_targets(args.target, args.speed_kmh, scenarios, extra)
-    start = load_brake_params(args.params)
-    lut = load_coupler_lut(args.lut, args.v_th_mm_s)
+    start, lut = _model(args)  # --params gives the start values and the fields not fitted
     side = companion_rows(targets)
     side_cases = [(s.consist(), s.speed_kmh) for s in side]
     cases = [(t.consist, t.speed_kmh) for t in targets] + side_cases

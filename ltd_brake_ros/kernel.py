@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from .physics import (BRAKE_BLOCKS, BRAKE_DISC, KMH_PER_MS, block_force_factor, coupler_force,
-                      jit, karwatzki_speed_factor, resistance_coefficients)
+                      jit, karwatzki_speed_factor, lut_segment, resistance_coefficients)
 
 #: Kernel return codes.
 OK, NEWTON_FAILED, STOPPED = 0, 1, 2
@@ -148,21 +148,9 @@ def track_forces(x, offset, start, mass, tk_s, tk_grad, tk_rc, fgrade, rcurve):
     rcurve : ndarray
         Out: curve resistance magnitude [N].
     """
-    ns = tk_s.shape[0]
     for i in range(x.shape[0]):
-        ch = start + x[i] - offset[i]
-        k = 0
-        if ch >= tk_s[ns - 1]:
-            k = ns - 1
-        elif ch > tk_s[0]:
-            lo, hi = 0, ns - 1
-            while hi - lo > 1:
-                mid = (lo + hi) // 2
-                if tk_s[mid] <= ch:
-                    lo = mid
-                else:
-                    hi = mid
-            k = lo
+        # before the first section start, the first section applies
+        k = max(lut_segment(tk_s, start + x[i] - offset[i]), 0)
         weight_kN = mass[i] * 9.81 / 1000.0
         fgrade[i] = -weight_kN * tk_grad[k]
         rcurve[i] = weight_kN * tk_rc[k]
