@@ -78,7 +78,11 @@ STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
 CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE)
-COMMAND_QOS = STATE_QOS
+#: Commands are precious: a deep reader queue keeps a burst (a controller catching up, a script)
+#: while the executor is busy; only a sustained flood beyond what rclpy takes is dropped.
+COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE)
 DIAGNOSTICS_QOS = STATE_QOS
 
 #: Published arrays: topic, Snapshot attribute, ``layout.dim[0].label``.
@@ -531,7 +535,7 @@ class SimNode(Node):
 
         Reads the plant's schedule without a lock: a torn read costs at most one needless
         or missed pause, never a wrong chunk. The commands themselves are never dropped here;
-        under a flood DDS drops what the subscription queue (KEEP_LAST 10) cannot hold.
+        under a flood DDS drops what the subscription queue (KEEP_LAST 1000) cannot hold.
         """
         if self._rtf <= 0.0 or not self._free_running():
             return

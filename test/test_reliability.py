@@ -396,7 +396,7 @@ def test_hostile_values_and_parameters_are_rejected_while_the_plant_keeps_time(
     assert proc.stop(signal.SIGINT) == 0 and "Traceback" not in proc.output()
     # every command the node took is in the recording, rejected ones included; the counts in
     # diagnostics are those of the recording (DDS may have dropped some when its reader
-    # queue, KEEP_LAST 10, overflowed: then they never reached the node)
+    # queue, KEEP_LAST 1000, overflowed: then they never reached the node)
     summary, recorded = read_mcap(folder)
     got = {t: [deserialize_message(d, Float64).data for _, _, d in recorded[f"{ns}/{t}"]]
            for t in sent}
