@@ -34,9 +34,9 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "ltd-brake = ltd_brake_ros.cli:main",
-            "sim_node = ltd_brake_ros.sim_node:main",
-            "replay_node = ltd_brake_ros.replay_node:main",
+            "ltd-brake = ltd_brake_ros.cli.main:main",
+            "sim_node = ltd_brake_ros.ros.sim_node:main",
+            "replay_node = ltd_brake_ros.ros.replay_node:main",
         ],
     },
 )

@@ -35,7 +35,7 @@ import numpy as np  # noqa: E402
 
 from ltd_brake_ros.inputs import (consist_from_mapping, get_scenario,  # noqa: E402
                                   load_brake_params)
-from ltd_brake_ros.reference import compare, record_stop, reference_stop  # noqa: E402
+from ltd_brake_ros.studies.reference import compare, record_stop, reference_stop  # noqa: E402
 from ltd_brake_ros.simulator import Commands, SimulationError, Simulator  # noqa: E402
 
 SPEED_KMH = 100.0

@@ -38,7 +38,7 @@ from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.signals import SignalHandlerOptions  # noqa: E402
 
 from ltd_brake_ros.inputs import consist_from_mapping  # noqa: E402
-from ltd_brake_ros.sim_node import SimNode  # noqa: E402
+from ltd_brake_ros.ros.sim_node import SimNode  # noqa: E402
 
 LONG_TRAIN = {"name": "E402B + 150 Shimmns (80 t)",
               "vehicles": [{"type": "E402B"}, {"type": "Shimmns", "count": 150, "mass_t": 80.0}]}

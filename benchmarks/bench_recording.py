@@ -25,7 +25,7 @@ from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-from ltd_brake_ros.bag import BagWriter, qos_profiles_yaml
+from ltd_brake_ros.recording.bag import BagWriter, qos_profiles_yaml
 from ltd_brake_ros.inputs import (consist_from_mapping, get_scenario, load_brake_params,
                                   load_coupler_lut)
 from ltd_brake_ros.simulator import Commands, Simulator
@@ -127,7 +127,7 @@ def bench(n: int, seconds: float, repeat: int) -> dict:
 
 def long_report(hours: float = 1.0, n: int = 150, rate_hz: float = 50.0) -> None:
     """Write a synthetic long recording (no simulator) and time the report on it."""
-    from ltd_brake_ros.report import analyse
+    from ltd_brake_ros.analysis.report import analyse
 
     rng = np.random.default_rng(0)
     samples = round(hours * 3600 * rate_hz)

@@ -24,8 +24,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import kernel
+from .physics import kernel
+from .inputs.commands import COMMAND_RANGES
 from .inputs import BlockBrake, BrakeParams, Consist, CouplerLUT, DiscBrake, InputError, Track
+from .physics.constants import STANDSTILL_M_S
 from .physics import (ARR_BG, ARR_BGU, BRAKE_BLOCKS, BRAKE_DISC, BRAKE_NONE, KMH_PER_MS,
                       curve_resistance_N_per_kN, sum_block_force_kN, train_braked_weight_percent)
 
@@ -63,7 +65,7 @@ class Commands:
     traction: float = 0.0
 
     def __post_init__(self):
-        for name, lo, hi in (("brake_demand", 0.0, 1.0), ("traction", -1.0, 1.0)):
+        for name, (lo, hi) in COMMAND_RANGES.items():
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise ValueError(f"{name} must be a number, got {value!r}")
@@ -139,6 +141,56 @@ class Snapshot:
     stopped: bool = False
 
 
+@dataclass(frozen=True)
+class CouplerPeaks:
+    """The largest draft and buff force of a run and where and when they occurred.
+
+    Attributes
+    ----------
+    draft_N : float
+        Largest draft (tension) force, >= 0 [N] (0 if no coupler was ever in draft).
+    draft_coupler : int
+        Coupler that carried it (1 = behind the head; 0 when the train has no coupler).
+    draft_time_s : float
+        When [s].
+    buff_N : float
+        Largest buff (compression) force, <= 0 [N].
+    buff_coupler : int
+        Coupler that carried it.
+    buff_time_s : float
+        When [s].
+    """
+
+    draft_N: float = 0.0
+    draft_coupler: int = 0
+    draft_time_s: float = 0.0
+    buff_N: float = 0.0
+    buff_coupler: int = 0
+    buff_time_s: float = 0.0
+
+    @classmethod
+    def from_arrays(cls, draft_N, draft_time_s, buff_N, buff_time_s) -> "CouplerPeaks":
+        """Summarise per-coupler running extremes.
+
+        Parameters
+        ----------
+        draft_N, buff_N : array_like
+            Largest draft (>= 0) and buff (<= 0) force of each coupler [N].
+        draft_time_s, buff_time_s : array_like
+            When each occurred [s].
+
+        Returns
+        -------
+        CouplerPeaks
+        """
+        draft, buff = np.asarray(draft_N, float), np.asarray(buff_N, float)
+        if draft.size == 0:
+            return cls()
+        jd, jb = int(np.argmax(draft)), int(np.argmin(buff))
+        return cls(float(draft[jd]), jd + 1, float(np.asarray(draft_time_s)[jd]),
+                   float(buff[jb]), jb + 1, float(np.asarray(buff_time_s)[jb]))
+
+
 class Simulator:
     """Longitudinal dynamics of one train under the empirical UIC air brake.
 
@@ -176,7 +228,7 @@ class Simulator:
                  lut: CouplerLUT | None = None, track: Track | None = None, *,
                  step_s: float = 0.01,
                  resistance: bool = True, brakes: bool = True, max_newton_iter: int = 100,
-                 newton_rtol: float = 1e-9, standstill_m_s: float = 1e-3,
+                 newton_rtol: float = 1e-9, standstill_m_s: float = STANDSTILL_M_S,
                  stick_band_m_s: float = 1e-5):
         if lut is None:
             from .inputs import load_coupler_lut
@@ -352,6 +404,16 @@ class Simulator:
     def lut_excursion_m(self) -> np.ndarray:
         """Largest deflection beyond the coupler table per coupler [m] (0 if never)."""
         return self._lut_out[: self.n - 1].copy()
+
+    def coupler_peaks(self) -> CouplerPeaks:
+        """Largest draft and buff force since the last reset, where and when.
+
+        Returns
+        -------
+        CouplerPeaks
+        """
+        return CouplerPeaks.from_arrays(self.peak_draft_N, self.peak_draft_time_s,
+                                        self.peak_buff_N, self.peak_buff_time_s)
 
     def braked_weight_percent(self) -> float:
         """Train braked-weight percentage lambda_train, Eq. 11 [%]."""

@@ -1,7 +1,7 @@
 """Accuracy of the compiled integrator against a tight-tolerance scipy reference.
 
 The train is the paper's scenario 1 consist (E402B + 10 Shimmns, 80 t) braked from 100 km/h;
-the reference is Radau at rtol 1e-8 (see :mod:`ltd_brake_ros.reference`). Nothing here is timed.
+the reference is Radau at rtol 1e-8 (see :mod:`ltd_brake_ros.studies.reference`). Nothing here is timed.
 """
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from ltd_brake_ros.inputs import load_brake_params, load_consist
-from ltd_brake_ros.reference import ReferenceModel, compare, record_stop, reference_stop
+from ltd_brake_ros.studies.reference import ReferenceModel, compare, record_stop, reference_stop
 from ltd_brake_ros.simulator import Commands, SimulationError, Simulator
 
 CONSIST = "consists/e402b_10_shimmns_80t.yaml"

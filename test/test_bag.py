@@ -27,7 +27,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, Float64
 
 from bag_helpers import array_msg
-from ltd_brake_ros.bag import (BagWriter, TruncatedBagWarning, bag_info, message_definition,
+from ltd_brake_ros.recording.bag import (BagWriter, TruncatedBagWarning, bag_info, message_definition,
                                parse_qos_profiles, qos_profiles_yaml, read_bag, recover,
                                type_description_hash)
 
@@ -317,7 +317,7 @@ def test_qos_yaml_from_rclpy_profile_parses_with_rosbags():
 
 
 def test_type_name_of_messages_and_classes():
-    from ltd_brake_ros.bag import type_name
+    from ltd_brake_ros.recording.bag import type_name
 
     assert type_name(Bool()) == TYPES["BOOL"]
     assert type_name(DiagnosticArray) == TYPES["DIAG"]
@@ -437,7 +437,7 @@ CHILD = textwrap.dedent("""
     import signal, sys
     from rclpy.serialization import serialize_message
     from std_msgs.msg import Float64
-    from ltd_brake_ros.bag import BagWriter
+    from ltd_brake_ros.recording.bag import BagWriter
     signal.signal(signal.SIGTERM, lambda *a: sys.exit(0))
     with BagWriter(sys.argv[1], metadata={"child": True}, flush_interval_s=0.05) as w:
         w.add_topic("/x", "std_msgs/msg/Float64")

@@ -4,11 +4,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ltd_brake_ros import calibrate as cal_mod
-from ltd_brake_ros import cli
+from ltd_brake_ros.studies import calibration as cal_mod
+from ltd_brake_ros.cli import main as cli
 from ltd_brake_ros.inputs import (InputError, load_brake_params, load_coupler_lut,
                                   load_scenarios)
-from ltd_brake_ros.runs import emergency_stop, validate
+from ltd_brake_ros.studies.runs import emergency_stop, validate
 
 UIC_TOL_PERCENT = 2.0
 FIT = ["t_app", "v_air", "t_fill", "k0"]

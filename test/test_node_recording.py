@@ -30,10 +30,10 @@ from rosgraph_msgs.msg import Clock  # noqa: E402
 from std_msgs.msg import Bool, Float64, Float64MultiArray  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from ltd_brake_ros.bag import bag_info  # noqa: E402
+from ltd_brake_ros.recording.bag import bag_info  # noqa: E402
 from ltd_brake_ros.inputs import get_scenario  # noqa: E402
-from ltd_brake_ros.report import analyse, write_plots  # noqa: E402
-from ltd_brake_ros.runs import emergency_stop  # noqa: E402
+from ltd_brake_ros.analysis.report import analyse, write_plots  # noqa: E402
+from ltd_brake_ros.studies.runs import emergency_stop  # noqa: E402
 
 TYPES = {**{t: "std_msgs/msg/Float64MultiArray" for t in ARRAY_TOPICS},
          "clock": "rosgraph_msgs/msg/Clock", "brake_command": "std_msgs/msg/Bool",

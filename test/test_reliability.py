@@ -38,7 +38,7 @@ from rosgraph_msgs.msg import Clock  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from ltd_brake_ros.bag import TruncatedBagWarning, bag_info, read_bag, recover  # noqa: E402
+from ltd_brake_ros.recording.bag import TruncatedBagWarning, bag_info, read_bag, recover  # noqa: E402
 
 #: Trials run at the same time (each node is mostly one busy thread; two cores).
 PARALLEL = 3
@@ -507,7 +507,7 @@ def test_command_flood_keeps_the_pace_and_every_handled_command_is_recorded(
 def test_simulator_failure_finishes_the_recording_and_reset_starts_a_new_one(
         ros_context, probe, tmp_path, monkeypatch, capfd):
     from ltd_brake_ros.simulator import SimulationError
-    from ltd_brake_ros.sim_node import SimNode
+    from ltd_brake_ros.ros.sim_node import SimNode
 
     folder = tmp_path / "failing"
     node = SimNode(context=ros_context, namespace="/failing", parameter_overrides=[

@@ -11,8 +11,8 @@ from std_msgs.msg import Bool
 
 from bag_helpers import array_msg
 from conftest import executable
-from ltd_brake_ros.bag import BagWriter, parse_qos_profiles, qos_profiles_yaml, read_bag
-from ltd_brake_ros.replay_node import Player, qos_from_profile
+from ltd_brake_ros.recording.bag import BagWriter, parse_qos_profiles, qos_profiles_yaml, read_bag
+from ltd_brake_ros.ros.replay_node import Player, qos_from_profile
 
 SPEED, CMD = "/rt/vehicles/speed", "/rt/brake_command"
 
@@ -111,7 +111,7 @@ def test_entry_point_is_installed():
     from importlib.metadata import entry_points
 
     scripts = {e.name: e.value for e in entry_points(group="console_scripts")}
-    assert scripts.get("replay_node") == "ltd_brake_ros.replay_node:main"
+    assert scripts.get("replay_node") == "ltd_brake_ros.ros.replay_node:main"
 
 
 # --------------------------------------------------------------------------- real ROS

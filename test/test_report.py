@@ -10,9 +10,9 @@ from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
 from bag_helpers import array_msg, record_emergency_stop
 from ltd_brake_ros.inputs import get_scenario
-from ltd_brake_ros.cli import main as cli_main
-from ltd_brake_ros.report import _HeatMap, analyse, decode_float64_array, write_csv, write_plots
-from ltd_brake_ros.runs import emergency_stop
+from ltd_brake_ros.cli.main import main as cli_main
+from ltd_brake_ros.analysis.report import _HeatMap, analyse, decode_float64_array, write_csv, write_plots
+from ltd_brake_ros.studies.runs import emergency_stop
 
 PNG = b"\x89PNG\r\n\x1a\n"
 SCENARIO = 7  # E402B + 10 Shimmns from 50 km/h: the shortest of the paper's runs
@@ -137,7 +137,7 @@ def test_heat_map_stays_bounded_and_keeps_extremes():
 
 
 def test_no_plant_topics_is_an_error(tmp_path):
-    from ltd_brake_ros.bag import BagWriter
+    from ltd_brake_ros.recording.bag import BagWriter
 
     with BagWriter(tmp_path / "b") as w:
         w.add_topic("/other", "std_msgs/msg/Float64MultiArray")

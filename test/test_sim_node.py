@@ -31,7 +31,7 @@ from rosgraph_msgs.msg import Clock  # noqa: E402
 from std_msgs.msg import Bool, Float64MultiArray  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
 
-from ltd_brake_ros import runs  # noqa: E402
+from ltd_brake_ros.studies import runs  # noqa: E402
 from ltd_brake_ros.inputs import get_scenario  # noqa: E402
 from ltd_brake_ros.simulator import SimulationError, Simulator  # noqa: E402
 
@@ -286,7 +286,7 @@ def test_bad_start_up_parameters_end_with_one_clear_line(processes, tmp_path):
 def test_parameter_file_declares_every_parameter_with_its_default():
     import yaml
 
-    from ltd_brake_ros.sim_node import PARAMETERS
+    from ltd_brake_ros.ros.sim_node import PARAMETERS
 
     listed = yaml.safe_load((REPO / "config" / "sim_node.yaml").read_text())
     values = listed["sim_node"]["ros__parameters"]
@@ -304,7 +304,7 @@ def test_parameter_file_declares_every_parameter_with_its_default():
 
 
 def test_simulation_error_is_reported_and_reset_recovers(ros_context, probe, monkeypatch):
-    from ltd_brake_ros.sim_node import SimNode
+    from ltd_brake_ros.ros.sim_node import SimNode
 
     node = SimNode(context=ros_context, namespace="/inproc",
                    parameter_overrides=[Parameter("lockstep", value=True),

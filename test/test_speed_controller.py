@@ -24,7 +24,7 @@ rclpy = pytest.importorskip("rclpy")
 from rclpy.serialization import deserialize_message  # noqa: E402
 from std_msgs.msg import Float64, Float64MultiArray  # noqa: E402
 
-from ltd_brake_ros.bag import read_bag  # noqa: E402
+from ltd_brake_ros.recording.bag import read_bag  # noqa: E402
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "speed_controller.py"
 NS = "/speed_control"

@@ -6,7 +6,7 @@ of Fig. 4 (its stiffness moves the peaks by 20-40 %).
 """
 import pytest
 
-from ltd_brake_ros.runs import validate
+from ltd_brake_ros.studies.runs import validate
 
 DISTANCE_TOL_PERCENT = {100: 1.0, 50: 1.5}
 

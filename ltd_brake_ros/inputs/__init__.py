@@ -14,6 +14,8 @@ from typing import Any, Mapping
 
 import yaml
 
+from .commands import COMMAND_RANGES
+
 #: Largest consist accepted [vehicles]; far above any real train, it guards memory and time.
 MAX_VEHICLES = 5000
 
@@ -52,7 +54,7 @@ def config_dir() -> Path:
     candidates = []
     if os.environ.get("LTD_BRAKE_CONFIG"):
         candidates.append(Path(os.environ["LTD_BRAKE_CONFIG"]))
-    candidates.append(Path(__file__).resolve().parent.parent / "config")
+    candidates.append(Path(__file__).resolve().parents[2] / "config")
     candidates.append(Path(sys.prefix) / "share" / "ltd_brake_ros" / "config")
     for path in candidates:
         if (path / "scenarios.yaml").is_file():
@@ -978,8 +980,10 @@ def load_command_script(path: str | os.PathLike) -> CommandScript:
                 raise f.error("emergency", f"must be true or false, got {f.data['emergency']!r}")
             change["emergency"] = f.data["emergency"]
         if f.has("brake_demand"):
-            change["brake_demand"] = f.number("brake_demand", lo=0.0, hi=1.0)
+            lo, hi = COMMAND_RANGES["brake_demand"]
+            change["brake_demand"] = f.number("brake_demand", lo=lo, hi=hi)
         if f.has("traction"):
-            change["traction"] = f.number("traction", lo=-1.0, hi=1.0)
+            lo, hi = COMMAND_RANGES["traction"]
+            change["traction"] = f.number("traction", lo=lo, hi=hi)
         steps.append((t, change))
     return CommandScript(tuple(steps), duration, str(p))

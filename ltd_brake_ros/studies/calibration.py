@@ -36,8 +36,8 @@ from typing import Sequence
 
 import numpy as np
 
-from .cli import _add_model_options, _model
-from .inputs import (BrakeParams, Consist, CouplerLUT, InputError, load_brake_params,
+from ..cli.main import _add_model_options, _model
+from ..inputs import (BrakeParams, Consist, CouplerLUT, InputError, load_brake_params,
                      load_consist, load_coupler_lut, load_scenarios)
 
 #: Coefficients of the UIC 544-1 reference curve S = C / lambda + D at 100 km/h [m %], [m].
@@ -198,7 +198,7 @@ def braked_weight_percent(consist: Consist) -> float:
     -------
     float
     """
-    from .physics import train_braked_weight_percent
+    from ..physics import train_braked_weight_percent
 
     return train_braked_weight_percent([v.braked_weight_t for v in consist.vehicles],
                                        [v.mass_kg / 1e3 for v in consist.vehicles],
@@ -329,7 +329,7 @@ def _init_worker(cases, lut, step_s) -> None:
 
 def _run_chunk(chunk) -> list[tuple[float, str | None]]:
     from .runs import emergency_stop
-    from .simulator import SimulationError
+    from ..simulator import SimulationError
 
     out = []
     for params, i in chunk:
@@ -622,7 +622,7 @@ def calibrate(targets: Sequence[Target], fit: Sequence[FitParameter | str],
     from scipy.optimize import least_squares
     from scipy.stats import t as student_t
 
-    from .simulator import SimulationError
+    from ..simulator import SimulationError
 
     fit = [p if isinstance(p, FitParameter) else parse_fit(p)[0] for p in fit]
     targets = list(targets)

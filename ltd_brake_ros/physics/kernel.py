@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from .physics import (BRAKE_BLOCKS, BRAKE_DISC, KMH_PER_MS, block_force_factor, coupler_force,
+from .equations import (BRAKE_BLOCKS, BRAKE_DISC, KMH_PER_MS, block_force_factor, coupler_force,
                       jit, karwatzki_speed_factor, lut_segment, resistance_coefficients)
 
 #: Kernel return codes.

@@ -23,7 +23,7 @@ import threading
 import time
 from pathlib import Path
 
-from .bag import bag_info, message_class, read_bag
+from ..recording.bag import bag_info, message_class, read_bag
 
 __all__ = ["Player", "qos_from_profile", "main"]
 

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 from mcap.exceptions import McapError
 
-from .bag import (TruncatedBagWarning, _iter_messages, bag_info, default_recover_destination,
+from ..recording.bag import (TruncatedBagWarning, _iter_messages, bag_info, default_recover_destination,
                   recover)
 
 __all__ = ["RunReport", "analyse", "write_plots", "write_csv", "run_metadata", "add_parsers",

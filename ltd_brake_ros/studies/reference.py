@@ -22,8 +22,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.sparse import csc_matrix
 
-from .inputs import BlockBrake, DiscBrake
-from .physics import (ARR_BG, ARR_BGU, BRAKE_BLOCKS, BRAKE_DISC, BRAKE_NONE, block_mu,
+from ..inputs import BlockBrake, DiscBrake
+from ..physics import (ARR_BG, ARR_BGU, BRAKE_BLOCKS, BRAKE_DISC, BRAKE_NONE, block_mu,
                       coupler_force, jit, resistance_N, rise_fraction)
 
 #: Default half-width of the regularised sign(v) of the retarding forces [m/s].
@@ -419,7 +419,7 @@ def record_stop(sim, chunk_s: float | None = None, max_time_s: float = 600.0
     RuntimeError
         The train had not stopped after ``max_time_s``.
     """
-    from .simulator import Commands
+    from ..simulator import Commands
 
     chunk_s = chunk_s or sim.step_s
     times = [sim.time_s]

@@ -9,7 +9,7 @@ import json
 import os
 import sys
 
-from .inputs import InputError
+from ..inputs import InputError
 
 CONVENTIONS = """\
 units and signs:
@@ -35,38 +35,39 @@ def _add_model_options(p: argparse.ArgumentParser) -> None:
 
 
 def _model(args):
-    from .inputs import load_brake_params, load_coupler_lut
+    from ..inputs import load_brake_params, load_coupler_lut
 
     return load_brake_params(args.params), load_coupler_lut(args.lut, args.v_th_mm_s)
 
 
-def _track(args):
-    from .inputs import Track, load_track
+#: Command-line option of each run-spec input, for error messages.
+RUN_SPEC_OPTIONS = {"consist": "--scenario/--consist", "speed_kmh": "--speed-kmh",
+                    "brake_params": "--params", "coupler_lut": "--lut", "track": "--track"}
 
-    if args.track:
-        return load_track(args.track, args.start_chainage_m)
-    if args.start_chainage_m is not None:
-        return Track(start_chainage_m=args.start_chainage_m)
-    return None
+
+def _run_spec(args):
+    from ..run_spec import RunSpecError, resolve_run_spec
+
+    try:
+        return resolve_run_spec(args.consist, scenario=args.scenario, speed_kmh=args.speed_kmh,
+                                params_file=args.params, lut_file=args.lut,
+                                v_th_mm_s=args.v_th_mm_s, track_file=args.track,
+                                start_chainage_m=args.start_chainage_m)
+    except RunSpecError as exc:
+        if exc.source != exc.input_name:
+            raise  # a file's error names the file and field
+        raise InputError("command line", RUN_SPEC_OPTIONS[exc.input_name], exc.reason) from None
 
 
 def cmd_simulate(args) -> int:
     """Run one emergency stop and print its summary."""
-    from .inputs import get_scenario, load_consist
-    from .runs import emergency_stop
+    from ..studies.runs import emergency_stop
 
     if args.scenario is None and args.consist is None:
         raise InputError("command line", "--scenario/--consist", "give a scenario number or a consist file")
-    speed = args.speed_kmh
-    if args.scenario is not None:
-        sc = get_scenario(args.scenario)
-        consist = load_consist(args.consist) if args.consist else sc.consist()
-        speed = sc.speed_kmh if speed is None else speed
-    else:
-        consist = load_consist(args.consist)
-        speed = 100.0 if speed is None else speed
-    params, lut = _model(args)
-    track = _track(args)
+    spec = _run_spec(args)
+    consist, speed, params, lut = spec.consist, spec.speed_kmh, spec.params, spec.lut
+    track = spec.track
     if args.commands:
         return _simulate_script(args, consist, speed, params, lut, track)
     events = []
@@ -106,8 +107,8 @@ def _simulate_script(args, consist, speed, params, lut, track) -> int:
 
     import numpy as np
 
-    from .inputs import load_command_script
-    from .runs import scripted_run
+    from ..inputs import load_command_script
+    from ..studies.runs import scripted_run
 
     script = load_command_script(args.commands)
     events = []
@@ -185,7 +186,7 @@ def validation_table(rows) -> str:
 
 def cmd_validate(args) -> int:
     """Print the paper's Tables 1-2 beside our results."""
-    from .runs import validate
+    from ..studies.runs import validate
 
     params, lut = _model(args)
     scenarios = _parse_scenarios(args.scenarios) if args.scenarios else None
@@ -284,8 +285,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print JSON instead of the table")
     p.set_defaults(func=cmd_validate)
 
-    from .calibrate import add_parser as add_calibrate_parser
-    from .report import add_parsers as add_report_parsers
+    from ..studies.calibration import add_parser as add_calibrate_parser
+    from ..analysis.report import add_parsers as add_report_parsers
 
     add_calibrate_parser(sub)
     add_report_parsers(sub)
@@ -305,7 +306,7 @@ def main(argv: list[str] | None = None) -> int:
     int
         Exit status: 0 success, 2 bad input, 3 simulation failure.
     """
-    from .simulator import SimulationError
+    from ..simulator import SimulationError
 
     parser = build_parser()
     args = parser.parse_args(argv)

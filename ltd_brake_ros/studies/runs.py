@@ -6,9 +6,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .inputs import (BrakeParams, CommandScript, Consist, CouplerLUT, Scenario, Track,
+from ..inputs import (BrakeParams, CommandScript, Consist, CouplerLUT, Scenario, Track,
                      load_brake_params, load_coupler_lut, load_scenarios)
-from .simulator import Commands, SimulationError, Simulator
+from ..simulator import Commands, SimulationError, Simulator
 
 
 @dataclass(frozen=True)
@@ -234,7 +234,7 @@ def validate(params: BrakeParams | None = None, lut: CouplerLUT | None = None,
 
 
 def _run_job(job) -> StopResult:
-    from .inputs import load_consist
+    from ..inputs import load_consist
 
     consist_file, speed, params, lut, step_s = job
     return emergency_stop(load_consist(consist_file), speed, params, lut, step_s=step_s)

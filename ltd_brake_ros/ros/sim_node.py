@@ -61,11 +61,10 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, Float64, Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import SetBool, Trigger
 
-from .bag import BagWriter, qos_profiles_yaml, type_name
-from .inputs import (BrakeParams, Consist, CouplerLUT, InputError, Track, get_scenario,
-                     load_brake_params, load_consist, load_coupler_lut, load_track,
-                     resolve_config_path)
-from .simulator import Commands, SimulationError, Simulator, Snapshot
+from ..recording.bag import BagWriter, qos_profiles_yaml, type_name
+from ..inputs import InputError
+from ..run_spec import RunSpec, RunSpecError, resolve_run_spec
+from ..simulator import Commands, SimulationError, Simulator, Snapshot
 
 NODE_NAME = "sim_node"
 
@@ -230,40 +229,16 @@ class StartupError(Exception):
         super().__init__(f"parameter {parameter}: {reason}")
 
 
-@dataclass(frozen=True)
-class PlantInputs:
-    """Validated inputs the simulator is built from.
-
-    Attributes
-    ----------
-    consist : Consist
-    speed_kmh : float
-        Initial speed [km/h].
-    params : BrakeParams
-    lut : CouplerLUT
-    origin : str
-        Human description of where the consist came from (scenario or file).
-    track : Track
-        Track profile.
-    """
-
-    consist: Consist
-    speed_kmh: float
-    params: BrakeParams
-    lut: CouplerLUT
-    origin: str
-    track: Track = field(default_factory=Track)
-
-
-def _looks_like_file(text: str) -> bool:
-    return text.lower().endswith((".yaml", ".yml")) or "/" in text \
-        or resolve_config_path(text).is_file()
+#: Node parameter of each run-spec input, for error messages.
+RUN_SPEC_PARAMETERS = {"consist": "consist", "speed_kmh": "initial_speed_kmh",
+                       "brake_params": "brake_params_file", "coupler_lut": "coupler_lut_file",
+                       "track": "track_file"}
 
 
 def load_plant_inputs(consist: str, initial_speed_kmh: float, brake_params_file: str = "",
                       coupler_lut_file: str = "", track_file: str = "",
-                      start_chainage_m: float = 0.0) -> PlantInputs:
-    """Resolve and validate the node's input parameters.
+                      start_chainage_m: float = 0.0) -> RunSpec:
+    """Resolve and validate the node's input parameters (see :func:`resolve_run_spec`).
 
     Parameters
     ----------
@@ -278,45 +253,19 @@ def load_plant_inputs(consist: str, initial_speed_kmh: float, brake_params_file:
 
     Returns
     -------
-    PlantInputs
+    RunSpec
 
     Raises
     ------
     StartupError
         Naming the parameter and the reason.
     """
-    if not consist.strip():
-        raise StartupError("consist", "is empty: give a consist file or a scenario (e.g. "
-                           "scenario_6)")
     try:
-        if _looks_like_file(consist):
-            train, speed, origin = load_consist(consist), None, f"file {consist}"
-        else:
-            scenario = get_scenario(consist)
-            train = scenario.consist()
-            speed, origin = scenario.speed_kmh, f"scenario {scenario.number}"
-    except InputError as exc:
-        raise StartupError("consist", exc.reason if exc.source == "scenario" else str(exc)) \
-            from None
-    if initial_speed_kmh >= 0.0:
-        speed = initial_speed_kmh
-    elif speed is None:
-        raise StartupError("initial_speed_kmh", "must be given (0 to 400 km/h) when consist is "
-                           "a file; -1 only means 'the scenario's speed'")
-    try:
-        params = load_brake_params(brake_params_file or None)
-    except InputError as exc:
-        raise StartupError("brake_params_file", str(exc)) from None
-    try:
-        lut = load_coupler_lut(coupler_lut_file or None)
-    except InputError as exc:
-        raise StartupError("coupler_lut_file", str(exc)) from None
-    try:
-        track = load_track(track_file, start_chainage_m) if track_file \
-            else Track(start_chainage_m=start_chainage_m)
-    except InputError as exc:
-        raise StartupError("track_file", str(exc)) from None
-    return PlantInputs(train, float(speed), params, lut, origin, track)
+        return resolve_run_spec(consist, speed_kmh=initial_speed_kmh,
+                                params_file=brake_params_file, lut_file=coupler_lut_file,
+                                track_file=track_file, start_chainage_m=start_chainage_m)
+    except RunSpecError as exc:
+        raise StartupError(RUN_SPEC_PARAMETERS[exc.input_name], exc.detail) from None
 
 
 # --------------------------------------------------------------------------- messages
@@ -439,7 +388,7 @@ class SimNode(Node):
             f"{self._chunk_s:g} s, {mode}")
 
     @staticmethod
-    def _build_simulator(inputs: PlantInputs, chunk_s: float) -> Simulator:
+    def _build_simulator(inputs: RunSpec, chunk_s: float) -> Simulator:
         try:
             sim = Simulator(inputs.consist, inputs.speed_kmh, inputs.params, inputs.lut,
                             inputs.track)
@@ -642,7 +591,7 @@ class SimNode(Node):
     def _open_recording(self, base: str) -> None:
         self._record_runs += 1
         folder = base if self._record_runs == 1 else f"{base}_{self._record_runs}"
-        from .report import run_metadata
+        from ..analysis.report import run_metadata
 
         meta = run_metadata(self._sim, scenario=self.inputs.origin,
                             parameters=dict(self._param_values),

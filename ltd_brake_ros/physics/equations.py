@@ -25,10 +25,7 @@ except ImportError:  # pragma: no cover - fallback keeps the package usable, onl
 
     HAVE_NUMBA = False
 
-#: Gravity used by UIC 544-1 and Karwatzki's law [m/s^2].
-G = 9.81
-#: m/s to km/h.
-KMH_PER_MS = 3.6
+from .constants import G, KMH_PER_MS  # noqa: F401 (re-exported)
 
 # Published P10 fit for Bgu blocks, mu = e^{-0.017 F}(0.18 - 0.09 e^{-V/25.7})
 # + 0.381 e^{-V/25.7} - 0.022 (F in kN, V in km/h), averaged over 0-100 km/h:

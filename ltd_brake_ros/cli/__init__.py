@@ -1,0 +1,1 @@
+"""``ltd-brake``: the command line, one module per verb."""

@@ -1,0 +1,1 @@
+"""ROS-free plant runtime: pacing, jobs, lock-step, run policy, recorder lifecycle."""

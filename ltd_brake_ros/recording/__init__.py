@@ -1,0 +1,1 @@
+"""MCAP recording in rosbag2 layout: writer, reader, recovery."""

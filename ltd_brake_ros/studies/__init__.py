@@ -1,0 +1,1 @@
+"""Offline uses of the simulator: runs, validation, calibration, the reference solver."""
