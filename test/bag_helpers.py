@@ -11,7 +11,7 @@ from std_msgs.msg import Bool, Float64MultiArray, MultiArrayDimension
 
 from ltd_brake_ros.recording.bag import BagWriter, qos_profiles_yaml
 from ltd_brake_ros.inputs import load_brake_params, load_coupler_lut
-from ltd_brake_ros.analysis.report import run_metadata
+from ltd_brake_ros.recording.metadata import run_metadata
 from ltd_brake_ros.simulator import Commands, Simulator
 
 F64 = "std_msgs/msg/Float64MultiArray"

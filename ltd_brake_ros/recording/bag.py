@@ -52,6 +52,8 @@ from mcap.records import (Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, M
 from mcap.opcode import Opcode
 from mcap.stream_reader import breakup_chunk
 
+from .qos import parse_qos_profiles, qos_profiles_yaml
+
 __all__ = ["BagWriter", "BagInfo", "TopicInfo", "TruncatedBagWarning", "bag_info", "read_bag",
            "recover", "default_recover_destination", "message_definition", "message_class",
            "type_name",
@@ -74,8 +76,6 @@ _INDEX_HEADER = struct.Struct("<BQHI")
 # size, uncompressed CRC, length of the compression name.
 _CHUNK_HEADER = struct.Struct("<BQQQQII")
 # rmw's "infinite" duration, which rosbag2 records for unset deadlines and lifespans.
-_INFINITE = {"sec": 9223372036, "nsec": 854775807}
-_DEFAULT_QOS = dict(history="keep_last", depth=10, reliability="reliable", durability="volatile")
 
 
 class TruncatedBagWarning(UserWarning):
@@ -206,75 +206,6 @@ def type_description_hash(msg_type: str) -> str:
     full = f"{pkg}/{ns}/{name}"
     return next((h["hash_string"] for h in desc.get("type_hashes", ())
                  if h.get("type_name") == full), "")
-
-
-# --------------------------------------------------------------------------- QoS
-
-
-def _duration(value) -> dict:
-    if value is None:
-        return dict(_INFINITE)
-    ns = int(value.nanoseconds)
-    if ns <= 0:  # rclpy's "unset" is the middleware default, which is infinite
-        return dict(_INFINITE)
-    return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
-
-
-def qos_profiles_yaml(profile=None, **policies) -> str:
-    """``offered_qos_profiles`` text (rosbag2 version 9: policy names as strings).
-
-    Parameters
-    ----------
-    profile : rclpy.qos.QoSProfile, optional
-        The publisher's profile. Without it the state-topic default is used: reliable,
-        volatile, keep_last 10.
-    **policies
-        Overrides without rclpy: ``history``, ``depth``, ``reliability``, ``durability``
-        (string policy names such as ``"best_effort"``).
-
-    Returns
-    -------
-    str
-        A YAML list holding one profile.
-    """
-    if profile is not None:
-        p = {"history": profile.history.name.lower(), "depth": int(profile.depth),
-             "reliability": profile.reliability.name.lower(),
-             "durability": profile.durability.name.lower(),
-             "deadline": _duration(profile.deadline), "lifespan": _duration(profile.lifespan),
-             "liveliness": profile.liveliness.name.lower(),
-             "liveliness_lease_duration": _duration(profile.liveliness_lease_duration),
-             "avoid_ros_namespace_conventions": bool(profile.avoid_ros_namespace_conventions)}
-    else:
-        p = dict(_DEFAULT_QOS)
-        p.update({"deadline": dict(_INFINITE), "lifespan": dict(_INFINITE),
-                  "liveliness": "automatic", "liveliness_lease_duration": dict(_INFINITE),
-                  "avoid_ros_namespace_conventions": False})
-    for key, value in policies.items():
-        if key not in ("history", "depth", "reliability", "durability", "liveliness"):
-            raise TypeError(f"unknown QoS policy {key!r}")
-        p[key] = value
-    order = ("history", "depth", "reliability", "durability", "deadline", "lifespan",
-             "liveliness", "liveliness_lease_duration", "avoid_ros_namespace_conventions")
-    return yaml.safe_dump([{k: p[k] for k in order}], sort_keys=False,
-                          default_flow_style=False).strip()
-
-
-def parse_qos_profiles(text: str) -> list[dict]:
-    """Parse ``offered_qos_profiles`` (YAML text or list) into a list of dicts.
-
-    Parameters
-    ----------
-    text : str or list
-
-    Returns
-    -------
-    list of dict
-    """
-    if not text:
-        return []
-    data = yaml.safe_load(text) if isinstance(text, str) else text
-    return [dict(p) for p in (data or [])]
 
 
 # --------------------------------------------------------------------------- writer

@@ -24,10 +24,10 @@ import time
 from pathlib import Path
 
 from ..recording.bag import bag_info, message_class, read_bag
+from ..recording.qos import qos_from_profile
 
 __all__ = ["Player", "qos_from_profile", "main"]
 
-_INFINITE_NS = 9223372036 * 1_000_000_000 + 854775807
 
 
 class Player:
@@ -181,55 +181,6 @@ class Player:
             finally:
                 messages.close()
         return self.published
-
-
-def qos_from_profile(profile: dict | None):
-    """rclpy ``QoSProfile`` from one recorded ``offered_qos_profiles`` entry.
-
-    Unset or infinite durations are left to the middleware default (infinite).
-
-    Parameters
-    ----------
-    profile : dict or None
-        Parsed profile (string or integer policy values); None gives reliable, volatile,
-        keep_last 10.
-
-    Returns
-    -------
-    rclpy.qos.QoSProfile
-    """
-    from rclpy.duration import Duration
-    from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
-                           ReliabilityPolicy)
-
-    p = dict(profile or {})
-
-    def policy(enum, key, default):
-        value = p.get(key, default)
-        try:
-            member = enum(value) if isinstance(value, int) else enum[str(value).upper()]
-        except (KeyError, ValueError):
-            member = enum[default.upper()]
-        # "unknown" and "best_available" are not offerable by a publisher
-        return member if member.name not in ("UNKNOWN", "BEST_AVAILABLE") \
-            else enum[default.upper()]
-
-    history = policy(HistoryPolicy, "history", "keep_last")
-    depth = int(p.get("depth", 10) or 0)
-    if history == HistoryPolicy.KEEP_LAST and depth < 1:
-        depth = 10
-    qos = QoSProfile(history=history, depth=depth,
-                     reliability=policy(ReliabilityPolicy, "reliability", "reliable"),
-                     durability=policy(DurabilityPolicy, "durability", "volatile"),
-                     liveliness=policy(LivelinessPolicy, "liveliness", "system_default"),
-                     avoid_ros_namespace_conventions=bool(
-                         p.get("avoid_ros_namespace_conventions", False)))
-    for key in ("deadline", "lifespan", "liveliness_lease_duration"):
-        d = p.get(key) or {}
-        ns = int(d.get("sec", 0)) * 1_000_000_000 + int(d.get("nsec", 0))
-        if 0 < ns < _INFINITE_NS:
-            setattr(qos, key, Duration(nanoseconds=ns))
-    return qos
 
 
 def _make_node(cli_bag):

@@ -591,7 +591,7 @@ class SimNode(Node):
     def _open_recording(self, base: str) -> None:
         self._record_runs += 1
         folder = base if self._record_runs == 1 else f"{base}_{self._record_runs}"
-        from ..analysis.report import run_metadata
+        from ..recording.metadata import run_metadata
 
         meta = run_metadata(self._sim, scenario=self.inputs.origin,
                             parameters=dict(self._param_values),
