@@ -9,6 +9,7 @@ import numpy as np
 from ..inputs import (BrakeParams, CommandScript, Consist, CouplerLUT, Scenario, Track,
                      load_brake_params, load_coupler_lut, load_scenarios)
 from ..simulator import Commands, SimulationError, Simulator
+from .parallel import map_jobs
 
 
 @dataclass(frozen=True)
@@ -100,7 +101,7 @@ def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | Non
 def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
                  params: BrakeParams | None = None, lut: CouplerLUT | None = None,
                  track: Track | None = None, *, step_s: float = 0.01, chunk_s: float = 0.1,
-                 max_time_s: float = 3600.0, on_chunk=None) -> Simulator:
+                 max_time_s: float = 3600.0, on_start=None, on_chunk=None) -> Simulator:
     """Run a train under a timed command script.
 
     The inputs change at chunk boundaries (every ``chunk_s``), as they would when a controller
@@ -118,6 +119,8 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
         Integration step and command-update interval [s].
     max_time_s : float, optional
         Upper bound when the script has no duration and the train does not stop [s].
+    on_start : callable, optional
+        Called with the initial :class:`~ltd_brake_ros.simulator.Snapshot`, before any command.
     on_chunk : callable, optional
         Called with each :class:`~ltd_brake_ros.simulator.Snapshot`.
 
@@ -128,6 +131,8 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
     """
     sim = Simulator(consist, speed_kmh, params or load_brake_params(), lut or load_coupler_lut(),
                     track, step_s=step_s)
+    if on_start:
+        on_start(sim.snapshot())
     end = script.duration_s if script.duration_s is not None else max_time_s
     state: dict = {}
     k = 0
@@ -156,9 +161,7 @@ def summarize(sim: Simulator, wall_s: float) -> StopResult:
     -------
     StopResult
     """
-    draft, buff = sim.peak_draft_N, sim.peak_buff_N
-    jd = int(np.argmax(draft)) if draft.size else 0
-    jb = int(np.argmin(buff)) if buff.size else 0
+    peaks = sim.coupler_peaks()
     exc = sim.lut_excursion_m
     stop_t = sim.stop_time_s - (sim.command_time_s or 0.0)
     return StopResult(
@@ -167,10 +170,10 @@ def summarize(sim: Simulator, wall_s: float) -> StopResult:
         braked_weight_percent=sim.braked_weight_percent(),
         initial_speed_kmh=sim.speed_kmh, stopping_distance_m=float(sim.stopping_distance_m),
         stop_time_s=float(stop_t),
-        peak_draft_kN=float(draft[jd]) / 1e3 if draft.size else 0.0,
-        peak_draft_coupler=jd + 1, peak_draft_time_s=float(sim.peak_draft_time_s[jd]) if draft.size else 0.0,
-        peak_buff_kN=float(buff[jb]) / 1e3 if buff.size else 0.0,
-        peak_buff_coupler=jb + 1, peak_buff_time_s=float(sim.peak_buff_time_s[jb]) if buff.size else 0.0,
+        peak_draft_kN=peaks.draft_N / 1e3, peak_draft_coupler=peaks.draft_coupler,
+        peak_draft_time_s=peaks.draft_time_s,
+        peak_buff_kN=peaks.buff_N / 1e3, peak_buff_coupler=peaks.buff_coupler,
+        peak_buff_time_s=peaks.buff_time_s,
         couplers_beyond_lut=int(np.count_nonzero(exc)), max_beyond_lut_mm=float(exc.max(initial=0.0)) * 1e3,
         wall_time_s=wall_s, real_time_factor=sim.time_s / wall_s if wall_s > 0 else float("inf"),
         steps=sim.steps, newton_iterations=sim.newton_iterations,
@@ -223,13 +226,7 @@ def validate(params: BrakeParams | None = None, lut: CouplerLUT | None = None,
     catalogue = load_scenarios()
     chosen = [catalogue[k] for k in (scenarios or sorted(catalogue))]
     jobs = [(s.consist_file, s.speed_kmh, params, lut, step_s) for s in chosen]
-    if workers > 1 and len(jobs) > 1:
-        from concurrent.futures import ProcessPoolExecutor
-
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            results = list(pool.map(_run_job, jobs))
-    else:
-        results = [_run_job(j) for j in jobs]
+    results = map_jobs(_run_job, jobs, workers)
     return [ValidationRow(s, r) for s, r in zip(chosen, results)]
 
 
