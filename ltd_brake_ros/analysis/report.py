@@ -1,4 +1,6 @@
-"""Analysis of a recorded run: the numbers a railway engineer asks first, plots and CSV.
+"""Analysis of a recorded run: the numbers a railway engineer asks first.
+
+Plots are drawn by :mod:`.plots`, the arrays exported as CSV by :mod:`.export`.
 
 The report reads only what the plant published (the recorded topics), so it gives the same
 answer for a live ``sim_node`` run, a replayed one and an offline recording.
@@ -16,7 +18,8 @@ Topics used (any namespace; the first one holding ``vehicles/speed`` is analysed
 
 Definitions: the emergency command is the first ``brake_command`` that is true (its record
 time); the train has stopped at the first recorded ``vehicles/speed`` sample at or after the
-command in which every vehicle is at most 1e-3 m/s; the stopping distance is the head's
+command in which every vehicle is at most ``STANDSTILL_M_S`` (1 mm/s, as the simulator
+counts a stop); the stopping distance is the head's
 position then minus its position at the command (interpolated between samples). Peak forces
 are the extremes over the whole recording.
 
@@ -26,67 +29,24 @@ the force of largest magnitude in it, sign kept), and the CSV export re-reads th
 """
 from __future__ import annotations
 
-import json
-import struct
-import sys
 import warnings
 from array import array
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
-from mcap.exceptions import McapError
 
-from ..recording.bag import (TruncatedBagWarning, _iter_messages, bag_info, default_recover_destination,
-                  recover)
+from ..physics.constants import STANDSTILL_M_S
+from ..recording.cdr import decode_bool, decode_float64_array
+from ..recording.reader import TruncatedBagWarning, bag_info, read_bag
+from ..simulator import CouplerPeaks
+from .export import write_csv  # noqa: F401 - re-exported: one import for the whole analysis
+from .plots import write_plots  # noqa: F401
 
-__all__ = ["RunReport", "analyse", "write_plots", "write_csv", "add_parsers",
-           "decode_float64_array"]
+__all__ = ["RunReport", "analyse", "write_plots", "write_csv", "decode_float64_array"]
 
-STANDSTILL_M_S = 1e-3
 _HEAT_BINS = 1500
 _SIGN = ("coupler force: draft (tension) positive, buff (compression) negative; "
          "coupler 1 is behind the head")
-
-
-# --------------------------------------------------------------------------- CDR decoding
-
-
-def _align(pos: int, n: int) -> int:
-    # CDR aligns relative to the end of the 4-byte encapsulation header
-    return 4 + ((pos - 4 + n - 1) & ~(n - 1))
-
-
-def decode_float64_array(data: bytes) -> np.ndarray:
-    """Values of a CDR-serialized ``std_msgs/msg/Float64MultiArray``, without ROS.
-
-    Parameters
-    ----------
-    data : bytes
-        The message as serialized by rclpy (4-byte encapsulation header, then CDR).
-
-    Returns
-    -------
-    ndarray
-        A read-only view of ``data`` (float64).
-    """
-    end = "<" if data[1] & 1 else ">"
-    u32 = struct.Struct(end + "I").unpack_from
-    (ndim,) = u32(data, 4)
-    pos = 8
-    for _ in range(ndim):
-        pos = _align(pos, 4)
-        (slen,) = u32(data, pos)
-        pos = _align(pos + 4 + slen, 4) + 8  # label, then size and stride
-    pos = _align(pos, 4) + 4  # data_offset
-    pos = _align(pos, 4)
-    (n,) = u32(data, pos)
-    pos = _align(pos + 4, 8)
-    return np.frombuffer(data, dtype=end + "f8", count=n, offset=pos)
-
-
-def _decode_bool(data: bytes) -> bool:
-    return data[4] != 0
 
 
 # --------------------------------------------------------------------------- streaming pieces
@@ -357,26 +317,25 @@ def analyse(path, namespace: str | None = None) -> RunReport:
     head_wagon = None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", TruncatedBagWarning)
-        for _scan, channel, msg in _iter_messages(path, strict=True):
-            topic = channel.topic
-            t = msg.log_time * 1e-9
+        for topic, _type, log_time_ns, data in read_bag(path):
+            t = log_time_ns * 1e-9
             if topic == t_speed:
-                v = decode_float64_array(msg.data)
+                v = decode_float64_array(data)
                 if v.size:
                     n_vehicles = v.size
                     speed.add(t, v[0], v[-1], float(np.abs(v).max()))
             elif topic == t_pos:
-                x = decode_float64_array(msg.data)
+                x = decode_float64_array(data)
                 if x.size:
                     pos.add(t, x[0])
             elif topic == t_brake:
-                fb = decode_float64_array(msg.data)
+                fb = decode_float64_array(data)
                 if fb.size:
                     if head_wagon is None:
                         head_wagon = 1 if fb.size > 1 else 0
                     brake.add(t, fb[head_wagon], fb[-1])
             elif topic == t_coupler:
-                f = decode_float64_array(msg.data)
+                f = decode_float64_array(data)
                 if not f.size:
                     continue
                 if draft is None or draft.shape != f.shape:
@@ -393,7 +352,7 @@ def analyse(path, namespace: str | None = None) -> RunReport:
                 buff[down] = f[down]
                 buff_t[down] = t
                 heat.add(t, f)
-            elif topic == t_cmd and command_t is None and _decode_bool(msg.data):
+            elif topic == t_cmd and command_t is None and decode_bool(data):
                 command_t = t
     if not len(speed):
         raise ValueError(f"{path}: no {t_speed} samples recorded")
@@ -425,11 +384,11 @@ def analyse(path, namespace: str | None = None) -> RunReport:
         rep.n_couplers = int(draft.size)
         rep.coupler_peak_draft_N, rep.coupler_peak_draft_time_s = draft, draft_t
         rep.coupler_peak_buff_N, rep.coupler_peak_buff_time_s = buff, buff_t
-        jd, jb = int(np.argmax(draft)), int(np.argmin(buff))
-        rep.peak_draft_kN, rep.peak_draft_coupler = float(draft[jd]) / 1e3, jd + 1
-        rep.peak_draft_time_s = float(draft_t[jd])
-        rep.peak_buff_kN, rep.peak_buff_coupler = float(buff[jb]) / 1e3, jb + 1
-        rep.peak_buff_time_s = float(buff_t[jb])
+        peaks = CouplerPeaks.from_arrays(draft, draft_t, buff, buff_t)
+        rep.peak_draft_kN, rep.peak_draft_coupler = peaks.draft_N / 1e3, peaks.draft_coupler
+        rep.peak_draft_time_s = peaks.draft_time_s
+        rep.peak_buff_kN, rep.peak_buff_coupler = peaks.buff_N / 1e3, peaks.buff_coupler
+        rep.peak_buff_time_s = peaks.buff_time_s
         rep.heat_t0_s, rep.heat_t1_s, rep.heat_force_N = heat.result()
     return rep
 
@@ -443,263 +402,3 @@ def _head_position(tp, xp, ts, vs, t: float) -> float:
         v = float(np.interp(tp[-1], ts, vs)) if ts.size else 0.0
         return float(xp[-1] + v * (t - tp[-1]))
     return float(np.interp(t, tp, xp))
-
-
-# --------------------------------------------------------------------------- plots and CSV
-
-
-def write_plots(report: RunReport, outdir) -> list[Path]:
-    """Write the engineer's plots as PNG files.
-
-    ``speed.png`` (head and tail speed), ``brake_force.png`` (first wagon and tail, as the
-    paper's Fig. 7), ``coupler_peaks.png`` (peak draft and buff per coupler, Fig. 6) and
-    ``coupler_force_map.png`` (coupler x time, diverging colours centred at zero, draft red).
-
-    Parameters
-    ----------
-    report : RunReport
-    outdir : str or path-like
-        Created if needed.
-
-    Returns
-    -------
-    list of pathlib.Path
-    """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.colors import TwoSlopeNorm
-    from matplotlib.figure import Figure
-
-    out = Path(outdir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = []
-    title = str(report.metadata.get("consist", {}).get("name", "")) \
-        if isinstance(report.metadata.get("consist"), dict) else ""
-
-    def save(fig, name):
-        FigureCanvasAgg(fig)
-        p = out / name
-        fig.savefig(p, dpi=120)
-        paths.append(p)
-
-    def mark_command(ax):
-        if report.command_time_s is not None:
-            ax.axvline(report.command_time_s, color="0.4", ls=":", lw=1, label="emergency command")
-        if report.stop_time_s is not None:
-            ax.axvline(report.stop_time_s, color="0.4", ls="--", lw=1, label="stopped")
-
-    fig = Figure(figsize=(8, 4.5), layout="constrained")
-    ax = fig.add_subplot()
-    ax.plot(report.speed_time_s, report.head_speed_m_s, label="head (vehicle 0)")
-    ax.plot(report.speed_time_s, report.tail_speed_m_s, label=f"tail (vehicle "
-            f"{max(report.n_vehicles - 1, 0)})", ls="--")
-    mark_command(ax)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("speed [m/s]")
-    sec = ax.secondary_yaxis("right", functions=(lambda v: v * 3.6, lambda v: v / 3.6))
-    sec.set_ylabel("speed [km/h]")
-    ax.set_title(f"Speed {title}".strip())
-    ax.grid(alpha=0.3)
-    ax.legend()
-    save(fig, "speed.png")
-
-    fig = Figure(figsize=(8, 4.5), layout="constrained")
-    ax = fig.add_subplot()
-    ax.plot(report.brake_time_s, report.head_wagon_brake_force_N / 1e3,
-            label=f"head wagon (vehicle {report.head_wagon_index})")
-    ax.plot(report.brake_time_s, report.tail_brake_force_N / 1e3,
-            label=f"tail (vehicle {max(report.n_vehicles - 1, 0)})", ls="--")
-    mark_command(ax)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("brake force [kN]")
-    ax.set_title(f"Brake force, head wagon and tail {title}".strip())
-    ax.grid(alpha=0.3)
-    ax.legend()
-    save(fig, "brake_force.png")
-
-    fig = Figure(figsize=(8, 4.5), layout="constrained")
-    ax = fig.add_subplot()
-    j = np.arange(1, report.n_couplers + 1)
-    ax.bar(j, report.coupler_peak_draft_N / 1e3, color="tab:red", label="peak draft (tension)")
-    ax.bar(j, report.coupler_peak_buff_N / 1e3, color="tab:blue",
-           label="peak buff (compression)")
-    ax.axhline(0.0, color="k", lw=0.8)
-    ax.set_xlabel("coupler (1 = behind the head)")
-    ax.set_ylabel("coupler force [kN]  (draft +, buff -)")
-    ax.set_title(f"Peak coupler forces along the train {title}".strip())
-    ax.grid(alpha=0.3, axis="y")
-    ax.legend()
-    save(fig, "coupler_peaks.png")
-
-    fig = Figure(figsize=(9, 4.8), layout="constrained")
-    ax = fig.add_subplot()
-    if report.heat_force_N.size:
-        data = report.heat_force_N.T / 1e3
-        lim = float(np.abs(data).max()) or 1.0
-        t0, t1 = report.heat_t0_s, report.heat_t1_s
-        last = max(t1[-1], t0[-1] + (t0[-1] - t0[-2])) if t0.size > 1 else t1[-1] + 1e-3
-        x = np.append(t0, last)  # bin edges: each bin starts at its first sample
-        y = np.arange(report.n_couplers + 1) + 0.5
-        im = ax.pcolormesh(x, y, data, shading="flat", cmap="RdBu_r", rasterized=True,
-                           norm=TwoSlopeNorm(vcenter=0.0, vmin=-lim, vmax=lim))
-        fig.colorbar(im, ax=ax, label="coupler force [kN]  (draft +, buff -)")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("coupler (1 = behind the head)")
-    ax.set_title(f"Coupler force {title}".strip())
-    save(fig, "coupler_force_map.png")
-    report.plots = paths
-    return paths
-
-
-def write_csv(report: RunReport, outdir) -> list[Path]:
-    """Export the recorded arrays and the per-coupler peaks as CSV (SI units).
-
-    One file per array topic (``speed_m_s.csv``, ``position_m.csv``, ``brake_force_N.csv``,
-    ``traction_force_N.csv``, ``coupler_force_N.csv``: a ``time_s`` column, then one column
-    per vehicle ``vehicle_0`` (head) ... or coupler ``coupler_1`` (behind the head) ...),
-    ``brake_command.csv`` and ``coupler_peaks.csv``. The recording is streamed again.
-
-    Parameters
-    ----------
-    report : RunReport
-    outdir : str or path-like
-
-    Returns
-    -------
-    list of pathlib.Path
-    """
-    out = Path(outdir)
-    out.mkdir(parents=True, exist_ok=True)
-    ns = report.namespace
-    files = {f"{ns}/vehicles/speed": ("speed_m_s.csv", "vehicle", 0),
-             f"{ns}/vehicles/position": ("position_m.csv", "vehicle", 0),
-             f"{ns}/vehicles/brake_force": ("brake_force_N.csv", "vehicle", 0),
-             f"{ns}/vehicles/traction_force": ("traction_force_N.csv", "vehicle", 0),
-             f"{ns}/couplers/force": ("coupler_force_N.csv", "coupler", 1)}
-    handles: dict = {}
-    blocks: dict = {}
-    written = []
-
-    def flush(topic):
-        rows = blocks.pop(topic, None)
-        if rows:
-            np.savetxt(handles[topic], np.array(rows), delimiter=",", fmt="%.10g")
-
-    try:
-        cmd = open(out / "brake_command.csv", "w")  # noqa: SIM115 - closed below
-        handles["__cmd"] = cmd
-        cmd.write("time_s,emergency\n")
-        written.append(out / "brake_command.csv")
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", TruncatedBagWarning)
-            for _scan, channel, msg in _iter_messages(report.source, strict=True):
-                topic = channel.topic
-                if topic == f"{ns}/brake_command":
-                    cmd.write(f"{msg.log_time * 1e-9:.9f},{int(_decode_bool(msg.data))}\n")
-                    continue
-                spec = files.get(topic)
-                if spec is None:
-                    continue
-                values = decode_float64_array(msg.data)
-                if topic not in handles:
-                    name, label, first = spec
-                    h = handles[topic] = open(out / name, "w")  # noqa: SIM115
-                    h.write(",".join(["time_s"] + [f"{label}_{i + first}"
-                                                   for i in range(values.size)]) + "\n")
-                    written.append(out / name)
-                rows = blocks.setdefault(topic, [])
-                if rows and len(rows[0]) != values.size + 1:
-                    continue  # a change of train length cannot go in the same table
-                rows.append(np.concatenate(([msg.log_time * 1e-9], values)))
-                if len(rows) >= 1000:
-                    flush(topic)
-        for topic in list(blocks):
-            flush(topic)
-    finally:
-        for h in handles.values():
-            h.close()
-    peaks = out / "coupler_peaks.csv"
-    table = np.column_stack((np.arange(1, report.n_couplers + 1), report.coupler_peak_draft_N,
-                             report.coupler_peak_draft_time_s, report.coupler_peak_buff_N,
-                             report.coupler_peak_buff_time_s))
-    np.savetxt(peaks, table, delimiter=",", fmt=["%d"] + ["%.10g"] * 4, comments="",
-               header="coupler,peak_draft_N,peak_draft_time_s,peak_buff_N,peak_buff_time_s")
-    written.append(peaks)
-    return written
-
-
-# --------------------------------------------------------------------------- command line
-
-
-def _default_outdir(run: Path) -> Path:
-    return run / "report" if run.is_dir() else run.with_name(run.stem + "_report")
-
-
-def add_parsers(subparsers) -> None:
-    """Add the ``report`` and ``recover`` subcommands to the ``ltd-brake`` parser.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The object returned by ``ArgumentParser.add_subparsers``.
-    """
-    ap = subparsers.add_parser(
-        "report", help="analyse a recorded run: distance, peak forces, plots",
-        description="Analyse a recorded run (bag folder or .mcap): emergency command time, "
-                    "stopping distance and time, peak draft and buff force with coupler number "
-                    "and time; writes PNG plots (speed, brake force, peak force per coupler, "
-                    "coupler force map) and, with --csv, the arrays in SI units.")
-    ap.add_argument("run", help="bag folder or .mcap file")
-    ap.add_argument("--out", help="directory for plots and CSV (default: RUN/report, or "
-                                  "<file>_report beside a .mcap file)")
-    ap.add_argument("--csv", action="store_true", help="also export the arrays as CSV")
-    ap.add_argument("--json", action="store_true", help="print the numbers as JSON")
-    ap.add_argument("--namespace", help="namespace of the plant's topics (default: found)")
-    ap.set_defaults(func=cmd_report)
-    ap = subparsers.add_parser(
-        "recover", help="rewrite a recording cut short (e.g. SIGKILL) as a complete bag",
-        description="Rewrite a recording whose recorder was killed into a complete, readable "
-                    "bag folder: every complete chunk is kept.")
-    ap.add_argument("src", help="bag folder or .mcap file")
-    ap.add_argument("dst", nargs="?", help="new bag folder (default: SRC_recovered)")
-    ap.set_defaults(func=cmd_recover)
-
-
-def cmd_report(args) -> int:
-    """Run ``ltd-brake report`` for parsed arguments; returns the exit status."""
-    run = Path(args.run)
-    try:
-        rep = analyse(run, args.namespace)
-    except (FileNotFoundError, ValueError, McapError) as exc:
-        print(f"ltd-brake report: error: {exc}", file=sys.stderr)
-        return 2
-    out = Path(args.out) if args.out else _default_outdir(run)
-    plots = write_plots(rep, out)
-    csvs = write_csv(rep, out) if args.csv else []
-    if args.json:
-        d = rep.as_dict()
-        d["plots"] = [str(p) for p in plots]
-        d["csv"] = [str(p) for p in csvs]
-        print(json.dumps(d, indent=2))
-    else:
-        print(rep.describe())
-        print(f"plots: {len(plots)} PNG files in {out}")
-        if csvs:
-            print(f"CSV: {len(csvs)} files in {out}")
-    return 0
-
-
-def cmd_recover(args) -> int:
-    """Run ``ltd-brake recover`` for parsed arguments; returns the exit status."""
-    dst = args.dst or default_recover_destination(args.src)
-    try:
-        res = recover(args.src, dst)
-    except (FileNotFoundError, FileExistsError, ValueError, McapError) as exc:
-        print(f"ltd-brake recover: error: {exc}", file=sys.stderr)
-        return 2
-    state = "was complete" if res["complete"] else f"ended early ({res['stopped_at']})"
-    print(f"source {state}")
-    print(f"recovered {res['messages']} messages from {res['chunks']} complete chunks "
-          f"into {res['output']}")
-    for topic, n in res["topics"].items():
-        print(f"  {topic}: {n}")
-    return 0

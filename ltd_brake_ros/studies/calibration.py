@@ -25,10 +25,8 @@ A parameter that ends on a bound is reported as such, without an interval.
 """
 from __future__ import annotations
 
-import argparse
 import math
 import os
-import sys
 import textwrap
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -36,9 +34,9 @@ from typing import Sequence
 
 import numpy as np
 
-from ..cli.main import _add_model_options, _model
 from ..inputs import (BrakeParams, Consist, CouplerLUT, InputError, load_brake_params,
-                     load_consist, load_coupler_lut, load_scenarios)
+                     load_coupler_lut, load_scenarios)
+from .parallel import default_workers, process_pool
 
 #: Coefficients of the UIC 544-1 reference curve S = C / lambda + D at 100 km/h [m %], [m].
 UIC_C_M_PERCENT = 50752.0
@@ -345,14 +343,6 @@ def _run_chunk(chunk) -> list[tuple[float, str | None]]:
     return out
 
 
-def default_workers() -> int:
-    """Cores this process may use."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not on Linux
-        return max(1, os.cpu_count() or 1)
-
-
 class DistanceEvaluator:
     """Stopping distances of a fixed set of trains for many parameter sets, on one pool.
 
@@ -386,10 +376,8 @@ class DistanceEvaluator:
         self._cost = [c.n * s for c, s in self.cases]
         self._pool = None
         if self.workers > 1:
-            from concurrent.futures import ProcessPoolExecutor
-
-            self._pool = ProcessPoolExecutor(self.workers, initializer=_init_worker,
-                                             initargs=(self.cases, lut, step_s))
+            self._pool = process_pool(self.workers, initializer=_init_worker,
+                                      initargs=(self.cases, lut, step_s))
         else:
             _init_worker(self.cases, lut, step_s)
 
@@ -874,7 +862,17 @@ def summary_lines(cal: Calibration) -> list[str]:
 # --------------------------------------------------------------------------- parameter file
 
 
-def _display_path(path: str) -> str:
+def display_path(path: str) -> str:
+    """``path`` relative to the working directory where it can be, as a user typed it.
+
+    Parameters
+    ----------
+    path : str
+
+    Returns
+    -------
+    str
+    """
     try:
         return os.path.relpath(path)
     except ValueError:
@@ -901,7 +899,7 @@ def parameter_file_text(cal: Calibration, command: str) -> str:
             f"# distances at {speeds} km/h, by least squares on the relative distance errors.",
             "# Produced by:",
             f"#   {command}",
-            f"# Start values: {_display_path(cal.start.source)}; the fields not fitted keep them.",
+            f"# Start values: {display_path(cal.start.source)}; the fields not fitted keep them.",
             "# Residuals (simulated - reference) / reference at the values below:"]
     names = [f"scenario {t.label}" if t.scenario is not None else t.label for t in cal.targets]
     wn = max(len(x) for x in names)
@@ -929,210 +927,3 @@ def parameter_file_text(cal: Calibration, command: str) -> str:
         value = f"{float(getattr(cal.params, name)):.{WRITE_DIGITS}g}"
         body.append(f"{name + ':':<13} {value:<10} # {_FIELD_COMMENTS[name]}")
     return "\n".join(head + body) + "\n"
-
-
-def command_line(args) -> str:
-    """The canonical ``ltd-brake calibrate`` command for parsed arguments.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Returns
-    -------
-    str
-    """
-    parts = ["ltd-brake calibrate", f"--target {args.target}", f"--speed-kmh {args.speed_kmh:g}",
-             "--fit " + ",".join(p.name for p in parse_fit(args.fit))]
-    if args.scenarios:
-        parts.append(f"--scenarios {args.scenarios}")
-    parts += [f"--consist {c}" for c in args.consist or ()]
-    if args.params:
-        parts.append(f"--params {args.params}")
-    if args.lut:
-        parts.append(f"--lut {args.lut}")
-    if args.v_th_mm_s is not None:
-        parts.append(f"--v-th-mm-s {args.v_th_mm_s:g}")
-    if args.step_s != 0.01:
-        parts.append(f"--step-s {args.step_s:g}")
-    if args.max_nfev != 60:
-        parts.append(f"--max-nfev {args.max_nfev}")
-    if args.out:
-        parts.append(f"--out {args.out}")
-    return " ".join(parts)
-
-
-# --------------------------------------------------------------------------- command line
-
-HELP = """\
-Fit brake-model parameters so that simulated emergency stopping distances match reference
-distances, by bounded nonlinear least squares on the relative errors (S_sim - S_ref) / S_ref.
-Prints the targets before and after, the fitted values with 95 % confidence intervals and
-their correlation matrix, and warns about parameters the chosen trains cannot determine.
-"""
-
-EPILOG = """\
-targets:
-  uic     UIC 544-1 emergency stopping distances from 100 km/h (the only speed with UIC
-          values): Table 1's UIC column for the paper's trains (scenarios 1-6), and the UIC
-          curve S = C/lambda + D (C = 50752 m %, D = 53.45 m, lambda by Eq. 11) for every
-          train added with --consist. Extra trains of other lengths or braked-weight
-          percentages help separate v_air (length-dependent) from t_app and t_fill.
-  paper   the LTDPoliTo column of Tables 1-2 (the paper's own model), at 100 or 50 km/h.
-
-parameters (--fit; bounds of the fit):
-  t_app   [s]    application delay at the head             0 to 5
-  v_air   [m/s]  brake-pipe propagation speed (Eq. 6)       100 to 340
-  t_fill  [s]    brake-cylinder filling time (Eq. 7)        2 to 30
-  k0      [-]    scale of the block k factor (UIC 544-1)    > 0
-  k_loco  [-]    locomotive disc-brake k factor (Eq. 4)     > 0
-  mu_eff  [-]    locomotive disc friction (Eq. 10)          0 to 1
-  Parameters not fitted keep their --params values.
-
-units: speeds in km/h, distances in m, times in s. The confidence intervals are 95 %,
-Student t with (targets - parameters) degrees of freedom, from (J^T J)^-1 s^2 at the optimum.
-
-examples:
-  ltd-brake calibrate --target uic --fit t_app,v_air,t_fill,k0 --out my_uic.yaml
-  ltd-brake calibrate --target paper --speed-kmh 50 --fit k0
-  ltd-brake validate --params my_uic.yaml
-"""
-
-
-def add_parser(subparsers) -> argparse.ArgumentParser:
-    """Add the ``calibrate`` subcommand to the ``ltd-brake`` parser.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The object returned by ``ArgumentParser.add_subparsers``.
-
-    Returns
-    -------
-    argparse.ArgumentParser
-        The subcommand's parser; its ``func`` is :func:`cmd_calibrate`.
-    """
-    p = subparsers.add_parser(
-        "calibrate", help="fit brake parameters to UIC 544-1 or the paper's distances",
-        description=HELP, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--target", choices=("uic", "paper"), default="uic",
-                   help="reference distances: uic (UIC 544-1, 100 km/h only) or paper "
-                        "(LTDPoliTo column); default uic")
-    p.add_argument("--speed-kmh", type=float, default=UIC_SPEED_KMH, metavar="KMH",
-                   help="initial speed [km/h]: the rows of Tables 1-2 to fit (default 100)")
-    p.add_argument("--fit", default="t_app,v_air,t_fill,k0", metavar="LIST",
-                   help="comma-separated parameters to fit (default t_app,v_air,t_fill,k0)")
-    p.add_argument("--scenarios", metavar="LIST",
-                   help="rows of Tables 1-2, e.g. 1-6 or 1,3,5 (default: all at --speed-kmh)")
-    p.add_argument("--consist", action="append", metavar="FILE",
-                   help="add a train (consist YAML) with the UIC curve as its target; "
-                        "repeatable; --target uic only")
-    _add_model_options(p)
-    p.add_argument("--max-nfev", type=int, default=60, metavar="N",
-                   help="most residual evaluations of the optimiser (default 60)")
-    p.add_argument("--jobs", type=int, metavar="N",
-                   help="parallel processes (default: all cores)")
-    p.add_argument("--out", metavar="FILE",
-                   help="write the fitted parameters as a brake-parameter YAML for "
-                        "simulate/validate/sim_node (--params)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(func=cmd_calibrate)
-    return p
-
-
-def _parse_scenarios(text: str) -> list[int]:
-    out: list[int] = []
-    for part in text.split(","):
-        part = part.strip()
-        try:
-            if "-" in part:
-                a, b = part.split("-", 1)
-                lo, hi = int(a), int(b)
-                if hi < lo:
-                    raise ValueError
-                out.extend(range(lo, hi + 1))
-            elif part:
-                out.append(int(part))
-        except ValueError:
-            raise InputError("command line", "--scenarios",
-                             f"expected numbers and ranges like 1-6,9, got {text!r}") from None
-    if not out:
-        raise InputError("command line", "--scenarios", "is empty")
-    return list(dict.fromkeys(out))
-
-
-def cmd_calibrate(args) -> int:
-    """Run ``ltd-brake calibrate``: fit, report, optionally write a parameter file.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        Parsed by the parser of :func:`add_parser`.
-
-    Returns
-    -------
-    int
-        Exit status (0).
-    """
-    from tqdm import tqdm
-
-    fit = parse_fit(args.fit)
-    if args.max_nfev < 1:
-        raise InputError("command line", "--max-nfev", f"must be at least 1, got {args.max_nfev}")
-    if args.jobs is not None and args.jobs < 1:
-        raise InputError("command line", "--jobs", f"must be at least 1, got {args.jobs}")
-    if args.out and not Path(args.out).expanduser().resolve().parent.is_dir():
-        raise InputError("command line", "--out", f"directory of {args.out} does not exist")
-    scenarios = _parse_scenarios(args.scenarios) if args.scenarios else None
-    extra = [load_consist(c) for c in args.consist or ()]
-    targets = build_targets(args.target, args.speed_kmh, scenarios, extra)
-    start, lut = _model(args)  # --params gives the start values and the fields not fitted
-    side = companion_rows(targets)
-    side_cases = [(s.consist(), s.speed_kmh) for s in side]
-    cases = [(t.consist, t.speed_kmh) for t in targets] + side_cases
-    budget = (args.max_nfev * (len(fit) + 1) + 2) * len(targets) + 2 * len(side)
-    # the total is the evaluation budget: a fit that converges ends before the bar is full
-    bar = tqdm(total=budget, desc="calibrating", file=sys.stderr, leave=False,
-               disable=args.quiet or not sys.stderr.isatty(),
-               bar_format="{desc}: {percentage:3.0f}% of budget |{bar}| {n_fmt}/{total_fmt} "
-                          "stops [{elapsed}{postfix}]")
-    try:
-        with DistanceEvaluator(cases, lut, step_s=args.step_s, workers=args.jobs,
-                               progress=bar) as ev:
-            cal = calibrate(targets, fit, start, lut, step_s=args.step_s, progress=bar,
-                            max_nfev=args.max_nfev, evaluator=ev)
-            side_m = (ev.distances([cal.start, cal.params], range(len(targets), len(cases)))
-                      if side else np.empty((2, 0)))
-            runs = ev.runs
-    finally:
-        bar.close()
-    what = {"uic": "UIC 544-1", "paper": "the LTDPoliTo column"}[args.target]
-    print(f"calibration against {what} at {args.speed_kmh:g} km/h: {len(targets)} targets, "
-          f"fitting {', '.join(p.name for p in fit)}; start values {_display_path(start.source)}")
-    print(f"{cal.nfev} residual evaluations, {runs} emergency stops; {cal.message}")
-    print()
-    print(targets_table(cal))
-    print()
-    print("\n".join(summary_lines(cal)))
-    print()
-    print(parameters_table(cal))
-    print()
-    print("correlation of the fitted values:")
-    print(correlation_table(cal))
-    if side:
-        print()
-        print("not fitted: the same trains at other speeds (Tables 1-2)")
-        print(companion_table(side, side_m[0], side_m[1]))
-    if cal.warnings:
-        print()
-        for w in cal.warnings:
-            print(f"warning: {w}")
-    if args.out:
-        text = parameter_file_text(cal, command_line(args))
-        try:
-            Path(args.out).expanduser().write_text(text, encoding="utf-8")
-        except OSError as exc:
-            raise InputError(args.out, "", f"cannot write: {exc}") from None
-        print()
-        print(f"wrote {args.out}")
-    return 0

@@ -1,17 +1,17 @@
-"""Run report: numbers against the offline simulator, plots, CSV, command line."""
+"""Run report: numbers against the offline simulator, plots, CSV."""
 from __future__ import annotations
-
-import json
 
 import numpy as np
 import pytest
 from rclpy.serialization import serialize_message
-from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
 from bag_helpers import array_msg, record_emergency_stop
+from ltd_brake_ros.analysis.export import write_csv
+from ltd_brake_ros.analysis.plots import write_plots
+from ltd_brake_ros.analysis.report import _HeatMap, analyse
 from ltd_brake_ros.inputs import get_scenario
-from ltd_brake_ros.cli.main import main as cli_main
-from ltd_brake_ros.analysis.report import _HeatMap, analyse, decode_float64_array, write_csv, write_plots
+from ltd_brake_ros.recording.recover import recover
+from ltd_brake_ros.recording.writer import BagWriter
 from ltd_brake_ros.studies.runs import emergency_stop
 
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -88,39 +88,16 @@ def test_csv_holds_the_arrays(run, report, tmp_path):
     np.testing.assert_allclose(peaks[:, 3], report.coupler_peak_buff_N, rtol=1e-9)
 
 
-def test_report_command_line(run, tmp_path, capsys):
-    folder = run[0]
-    assert cli_main(["report", str(folder), "--out", str(tmp_path / "out"), "--csv", "--json"]) == 0
-    out = json.loads(capsys.readouterr().out)
-    assert out["peak_draft_coupler"] == 1 and len(out["plots"]) == 4 and out["csv"]
-    assert out["metadata"]["consist"]["vehicles"] == 11
-    assert cli_main(["report", str(folder / "run_0.mcap"), "--out", str(tmp_path / "o2")]) == 0
-    assert "Peak buff" in capsys.readouterr().out
-    assert cli_main(["report", str(tmp_path / "missing")]) == 2
-
-
-def test_report_on_a_killed_recording_and_recover_command(run, tmp_path, capsys):
+def test_report_on_a_killed_recording_and_on_its_recovery(run, tmp_path):
     data = (run[0] / "run_0.mcap").read_bytes()
     cut = tmp_path / "killed.mcap"
     cut.write_bytes(data[: len(data) * 2 // 3])
     rep = analyse(cut)
     assert not rep.complete and rep.command_time_s == 0.0
     assert rep.stop_time_s is None  # the end of the run is gone
-    assert cli_main(["recover", str(cut)]) == 0
-    assert "recovered" in capsys.readouterr().out
+    recover(cut)
     rec = analyse(tmp_path / "killed_recovered")
     assert rec.complete and rec.peak_buff_kN == rep.peak_buff_kN
-
-
-@pytest.mark.parametrize("labels", [[], ["vehicle"], ["ab", "coupler_of_train"], ["xyz"] * 3])
-@pytest.mark.parametrize("n", [0, 1, 7])
-def test_cdr_decoding_matches_rclpy(labels, n):
-    m = Float64MultiArray()
-    m.layout.dim = [MultiArrayDimension(label=lab, size=n, stride=1) for lab in labels]
-    m.layout.data_offset = 3
-    values = np.linspace(-1.5, 2.5, n)
-    m.data = values.tolist()
-    np.testing.assert_array_equal(decode_float64_array(serialize_message(m)), values)
 
 
 def test_heat_map_stays_bounded_and_keeps_extremes():
@@ -137,8 +114,6 @@ def test_heat_map_stays_bounded_and_keeps_extremes():
 
 
 def test_no_plant_topics_is_an_error(tmp_path):
-    from ltd_brake_ros.recording.bag import BagWriter
-
     with BagWriter(tmp_path / "b") as w:
         w.add_topic("/other", "std_msgs/msg/Float64MultiArray")
         w.write("/other", serialize_message(array_msg([1.0], "vehicle")), 0)

@@ -27,11 +27,13 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, Float64
 
 from bag_helpers import array_msg
-from ltd_brake_ros.recording.bag import (BagWriter, TruncatedBagWarning, bag_info, message_definition,
-                               parse_qos_profiles, qos_profiles_yaml, read_bag, recover,
-                               type_description_hash)
+from ltd_brake_ros.recording.qos import parse_qos_profiles, qos_profiles_yaml
+from ltd_brake_ros.recording.reader import TruncatedBagWarning, bag_info, read_bag
+from ltd_brake_ros.recording.recover import recover
+from ltd_brake_ros.recording.ros_types import message_definition, type_description_hash, type_name
+from ltd_brake_ros.recording.writer import BagWriter
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 SEP = "=" * 80
 
 FLOAT64_MULTIARRAY_TEXT = f"""\
@@ -317,8 +319,6 @@ def test_qos_yaml_from_rclpy_profile_parses_with_rosbags():
 
 
 def test_type_name_of_messages_and_classes():
-    from ltd_brake_ros.recording.bag import type_name
-
     assert type_name(Bool()) == TYPES["BOOL"]
     assert type_name(DiagnosticArray) == TYPES["DIAG"]
     assert type_name(Clock) == TYPES["CLOCK"]
@@ -437,7 +437,7 @@ CHILD = textwrap.dedent("""
     import signal, sys
     from rclpy.serialization import serialize_message
     from std_msgs.msg import Float64
-    from ltd_brake_ros.recording.bag import BagWriter
+    from ltd_brake_ros.recording.writer import BagWriter
     signal.signal(signal.SIGTERM, lambda *a: sys.exit(0))
     with BagWriter(sys.argv[1], metadata={"child": True}, flush_interval_s=0.05) as w:
         w.add_topic("/x", "std_msgs/msg/Float64")
@@ -516,3 +516,10 @@ def test_recover_refuses_what_is_not_mcap(tmp_path):
     with pytest.raises(McapError, match="not an MCAP file"):
         recover(tmp_path / "notes.mcap", tmp_path / "out")
     assert not (tmp_path / "out").exists()
+
+
+def test_former_single_module_still_exports_the_api():
+    from ltd_brake_ros.recording import bag
+
+    assert bag.BagWriter is BagWriter and bag.read_bag is read_bag and bag.recover is recover
+    assert set(bag.__all__) <= set(dir(bag))

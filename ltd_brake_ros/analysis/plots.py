@@ -1,0 +1,114 @@
+"""Plots of a recorded run, as PNG files (the paper's Figs. 6-7 and a coupler-force map)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from .report import RunReport
+
+__all__ = ["write_plots"]
+
+
+def write_plots(report: RunReport, outdir) -> list[Path]:
+    """Write the engineer's plots as PNG files.
+
+    ``speed.png`` (head and tail speed), ``brake_force.png`` (first wagon and tail, as the
+    paper's Fig. 7), ``coupler_peaks.png`` (peak draft and buff per coupler, Fig. 6) and
+    ``coupler_force_map.png`` (coupler x time, diverging colours centred at zero, draft red).
+
+    Parameters
+    ----------
+    report : RunReport
+    outdir : str or path-like
+        Created if needed.
+
+    Returns
+    -------
+    list of pathlib.Path
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import TwoSlopeNorm
+    from matplotlib.figure import Figure
+
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    title = str(report.metadata.get("consist", {}).get("name", "")) \
+        if isinstance(report.metadata.get("consist"), dict) else ""
+
+    def save(fig, name):
+        FigureCanvasAgg(fig)
+        p = out / name
+        fig.savefig(p, dpi=120)
+        paths.append(p)
+
+    def mark_command(ax):
+        if report.command_time_s is not None:
+            ax.axvline(report.command_time_s, color="0.4", ls=":", lw=1, label="emergency command")
+        if report.stop_time_s is not None:
+            ax.axvline(report.stop_time_s, color="0.4", ls="--", lw=1, label="stopped")
+
+    fig = Figure(figsize=(8, 4.5), layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot(report.speed_time_s, report.head_speed_m_s, label="head (vehicle 0)")
+    ax.plot(report.speed_time_s, report.tail_speed_m_s, label=f"tail (vehicle "
+            f"{max(report.n_vehicles - 1, 0)})", ls="--")
+    mark_command(ax)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("speed [m/s]")
+    sec = ax.secondary_yaxis("right", functions=(lambda v: v * 3.6, lambda v: v / 3.6))
+    sec.set_ylabel("speed [km/h]")
+    ax.set_title(f"Speed {title}".strip())
+    ax.grid(alpha=0.3)
+    ax.legend()
+    save(fig, "speed.png")
+
+    fig = Figure(figsize=(8, 4.5), layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot(report.brake_time_s, report.head_wagon_brake_force_N / 1e3,
+            label=f"head wagon (vehicle {report.head_wagon_index})")
+    ax.plot(report.brake_time_s, report.tail_brake_force_N / 1e3,
+            label=f"tail (vehicle {max(report.n_vehicles - 1, 0)})", ls="--")
+    mark_command(ax)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("brake force [kN]")
+    ax.set_title(f"Brake force, head wagon and tail {title}".strip())
+    ax.grid(alpha=0.3)
+    ax.legend()
+    save(fig, "brake_force.png")
+
+    fig = Figure(figsize=(8, 4.5), layout="constrained")
+    ax = fig.add_subplot()
+    j = np.arange(1, report.n_couplers + 1)
+    ax.bar(j, report.coupler_peak_draft_N / 1e3, color="tab:red", label="peak draft (tension)")
+    ax.bar(j, report.coupler_peak_buff_N / 1e3, color="tab:blue",
+           label="peak buff (compression)")
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.set_xlabel("coupler (1 = behind the head)")
+    ax.set_ylabel("coupler force [kN]  (draft +, buff -)")
+    ax.set_title(f"Peak coupler forces along the train {title}".strip())
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend()
+    save(fig, "coupler_peaks.png")
+
+    fig = Figure(figsize=(9, 4.8), layout="constrained")
+    ax = fig.add_subplot()
+    if report.heat_force_N.size:
+        data = report.heat_force_N.T / 1e3
+        lim = float(np.abs(data).max()) or 1.0
+        t0, t1 = report.heat_t0_s, report.heat_t1_s
+        last = max(t1[-1], t0[-1] + (t0[-1] - t0[-2])) if t0.size > 1 else t1[-1] + 1e-3
+        x = np.append(t0, last)  # bin edges: each bin starts at its first sample
+        y = np.arange(report.n_couplers + 1) + 0.5
+        im = ax.pcolormesh(x, y, data, shading="flat", cmap="RdBu_r", rasterized=True,
+                           norm=TwoSlopeNorm(vcenter=0.0, vmin=-lim, vmax=lim))
+        fig.colorbar(im, ax=ax, label="coupler force [kN]  (draft +, buff -)")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("coupler (1 = behind the head)")
+    ax.set_title(f"Coupler force {title}".strip())
+    save(fig, "coupler_force_map.png")
+    report.plots = paths
+    return paths

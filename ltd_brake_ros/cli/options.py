@@ -1,0 +1,173 @@
+"""Options several verbs share: the model files, the run specification, scenario lists."""
+from __future__ import annotations
+
+import argparse
+
+from ..inputs import InputError
+
+CONVENTIONS = """\
+units and signs:
+  speeds in km/h on the command line, SI (m, s, N) in files and JSON unless the key says
+  otherwise (e.g. peak_draft_kN); coupler 1 is the coupler behind the head vehicle; draft
+  (tension) forces are positive, buff (compression) forces negative; the stopping distance is
+  the head's travel from the emergency command to standstill (every vehicle < 1 mm/s).
+"""
+
+#: Command-line option of each run-spec input, for error messages.
+RUN_SPEC_OPTIONS = {"consist": "--scenario/--consist", "speed_kmh": "--speed-kmh",
+                    "brake_params": "--params", "coupler_lut": "--lut", "track": "--track"}
+
+
+def add_model_options(p: argparse.ArgumentParser) -> None:
+    """Add ``--params``, ``--lut``, ``--v-th-mm-s`` and ``--step-s``.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+    """
+    p.add_argument("--params", metavar="FILE",
+                   help="brake-parameter YAML (t_app_s, v_air_m_s, t_fill_s, k0, k_loco, "
+                        "mu_eff); default: config/brake_params/paper.yaml (Table 3)")
+    p.add_argument("--lut", metavar="FILE",
+                   help="coupler LUT YAML (deflection_mm, loading_kN, unloading_kN); default: "
+                        "the reconstructed buffer-hook table config/couplers/buffer_hook_pugi.yaml")
+    p.add_argument("--v-th-mm-s", type=float, metavar="MM_S",
+                   help="Eq. 3 threshold speed between loading and unloading curves [mm/s] "
+                        "(default: the LUT file's, 0.1)")
+    p.add_argument("--step-s", type=float, default=0.01, metavar="S",
+                   help="integration step [s] (default 0.01)")
+
+
+def add_run_spec_options(p: argparse.ArgumentParser) -> None:
+    """Add the options of one run: train, initial speed, model files, track.
+
+    ``--scenario``, ``--consist``, ``--speed-kmh``, the model options of
+    :func:`add_model_options`, ``--track`` and ``--start-chainage-m``; read them back with
+    :func:`run_spec`.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+    """
+    p.add_argument("--scenario", metavar="N",
+                   help="run N of the paper's Tables 1-2 (1-12): composition and initial speed")
+    p.add_argument("--consist", metavar="FILE",
+                   help="consist YAML (vehicles from the head); overrides the scenario's train")
+    p.add_argument("--speed-kmh", type=float, metavar="KMH",
+                   help="initial speed [km/h] (default: the scenario's, else 100)")
+    add_model_options(p)
+    p.add_argument("--track", metavar="FILE",
+                   help="track profile, YAML (sections: from_m, gradient_permille uphill "
+                        "positive, radius_m) or CSV (chainage_m,gradient_permille,radius_m); "
+                        "default: level straight track")
+    p.add_argument("--start-chainage-m", type=float, metavar="M",
+                   help="chainage of the head's front at t = 0 [m] (default: the track file's)")
+
+
+def load_model(args: argparse.Namespace):
+    """Brake parameters and coupler table named by :func:`add_model_options`.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    tuple of (BrakeParams, CouplerLUT)
+    """
+    from ..inputs import load_brake_params, load_coupler_lut
+
+    return load_brake_params(args.params), load_coupler_lut(args.lut, args.v_th_mm_s)
+
+
+def run_spec(args: argparse.Namespace):
+    """Resolve the options of :func:`add_run_spec_options` with the one run-spec resolver.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    ltd_brake_ros.run_spec.RunSpec
+
+    Raises
+    ------
+    InputError
+        A bad file (naming the file and field) or a bad option (naming the option).
+    """
+    from ..run_spec import RunSpecError, resolve_run_spec
+
+    try:
+        return resolve_run_spec(args.consist, scenario=args.scenario, speed_kmh=args.speed_kmh,
+                                params_file=args.params, lut_file=args.lut,
+                                v_th_mm_s=args.v_th_mm_s, track_file=args.track,
+                                start_chainage_m=args.start_chainage_m)
+    except RunSpecError as exc:
+        if exc.source != exc.input_name:
+            raise  # a file's error names the file and field
+        raise InputError("command line", RUN_SPEC_OPTIONS[exc.input_name], exc.reason) from None
+
+
+def parse_scenarios(text: str, option: str = "--scenarios") -> list[int]:
+    """Scenario numbers from a list such as ``1-6,9``.
+
+    Parameters
+    ----------
+    text : str
+        Comma-separated numbers and inclusive ranges ``a-b`` (a <= b).
+    option : str, optional
+        The option named in error messages.
+
+    Returns
+    -------
+    list of int
+        In the order given, each number once.
+
+    Raises
+    ------
+    InputError
+        Not numbers and ranges, a range that runs backwards, or nothing at all.
+    """
+    out: list[int] = []
+    for part in text.split(","):
+        part = part.strip()
+        try:
+            if "-" in part:
+                a, b = part.split("-", 1)
+                lo, hi = int(a), int(b)
+                if hi < lo:
+                    raise ValueError
+                out.extend(range(lo, hi + 1))
+            elif part:
+                out.append(int(part))
+        except ValueError:
+            raise InputError("command line", option,
+                             f"expected numbers and ranges like 1-6,9, got {text!r}") from None
+    if not out:
+        raise InputError("command line", option, "is empty")
+    return list(dict.fromkeys(out))
+
+
+def positive_int(value: int | None, option: str) -> int | None:
+    """Check that an optional count (``--jobs``, ``--max-nfev``) is at least 1.
+
+    Parameters
+    ----------
+    value : int or None
+    option : str
+        The option named in the error message.
+
+    Returns
+    -------
+    int or None
+        ``value`` unchanged.
+
+    Raises
+    ------
+    InputError
+        ``value`` is below 1.
+    """
+    if value is not None and value < 1:
+        raise InputError("command line", option, f"must be at least 1, got {value}")
+    return value

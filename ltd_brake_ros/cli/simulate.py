@@ -1,0 +1,115 @@
+"""``ltd-brake simulate``: one emergency stop, or one command script, and its summary."""
+from __future__ import annotations
+
+import argparse
+import json
+
+from ..inputs import InputError
+from .options import CONVENTIONS, add_run_spec_options, run_spec
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Add the ``simulate`` verb to ``ltd-brake`` (the verb contract: :mod:`ltd_brake_ros.cli`)."""
+    p = subparsers.add_parser(
+        "simulate", help="one emergency stop: distance, time, peak coupler forces",
+        description="Apply the emergency brake at t = 0 and integrate until the train stands "
+                    "still. Prints lambda_train (Eq. 11), the stopping distance and time, the "
+                    "peak draft and buff forces with their coupler numbers, and the cost.",
+        epilog=CONVENTIONS + "\nexamples:\n  ltd-brake simulate --scenario 6\n"
+               "  ltd-brake simulate --consist my_train.yaml --speed-kmh 80 --json\n",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_run_spec_options(p)
+    p.add_argument("--commands", metavar="FILE",
+                   help="command script (t_s -> traction -1..1, brake_demand 0..1, emergency); "
+                        "without it the emergency brake is applied at t = 0")
+    p.add_argument("--json", action="store_true", help="print one JSON object (units in the keys)")
+    p.set_defaults(func=run)
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run one emergency stop (or the ``--commands`` script) and print its summary."""
+    from ..studies.runs import emergency_stop
+
+    if args.scenario is None and args.consist is None:
+        raise InputError("command line", "--scenario/--consist",
+                         "give a scenario number or a consist file")
+    spec = run_spec(args)
+    if args.commands:
+        return _run_script(args, spec)
+    params, lut = spec.params, spec.lut
+    events = []
+    res = emergency_stop(spec.consist, spec.speed_kmh, params, lut, spec.track,
+                         step_s=args.step_s, on_chunk=lambda s: events.extend(s.events))
+    lut_events = [e for e in events if e.kind == "coupler_out_of_lut"]
+    if args.json:
+        out = res.as_dict()
+        out["params_file"] = params.source
+        out["lut_file"] = lut.source
+        out["couplers_out_of_lut"] = [dict(e.detail, time_s=e.time_s) for e in lut_events]
+        print(json.dumps(out, indent=2))
+        return 0
+    print(f"train            {res.consist}: {res.vehicles} vehicles, {res.train_length_m:.1f} m, "
+          f"{res.train_mass_t:.0f} t")
+    print(f"braked weight    lambda_train = {res.braked_weight_percent:.1f} % (Eq. 11)")
+    print(f"initial speed    {res.initial_speed_kmh:g} km/h, emergency brake at t = 0")
+    print(f"stopping         {res.stopping_distance_m:.1f} m in {res.stop_time_s:.2f} s")
+    print(f"peak draft       {res.peak_draft_kN:.1f} kN at coupler {res.peak_draft_coupler} "
+          f"(t = {res.peak_draft_time_s:.2f} s)")
+    print(f"peak buff        {res.peak_buff_kN:.1f} kN at coupler {res.peak_buff_coupler} "
+          f"(t = {res.peak_buff_time_s:.2f} s)")
+    for e in lut_events:
+        print(f"warning          {e.describe()}")
+    if res.couplers_beyond_lut:
+        print(f"warning          {res.couplers_beyond_lut} couplers left the coupler table, "
+              f"by up to {res.max_beyond_lut_mm:.1f} mm")
+    print(f"cost             {res.wall_time_s * 1e3:.0f} ms wall, {res.real_time_factor:.0f}x "
+          f"real time, {res.steps} steps, {res.newton_iterations_per_step:.2f} Newton "
+          "iterations per step")
+    return 0
+
+
+def _run_script(args: argparse.Namespace, spec) -> int:
+    """Run a command script and print what happened."""
+    import time
+
+    from ..inputs import load_command_script
+    from ..physics.constants import KMH_PER_MS
+    from ..studies.runs import scripted_run
+
+    script = load_command_script(args.commands)
+    events = []
+    start_m = []
+
+    start = time.perf_counter()
+    sim = scripted_run(spec.consist, spec.speed_kmh, script, spec.params, spec.lut, spec.track,
+                       step_s=args.step_s, on_start=lambda s: start_m.append(s.position_m[0]),
+                       on_chunk=lambda s: events.extend(s.events))
+    wall = time.perf_counter() - start
+    snap = sim.snapshot()
+    peaks = sim.coupler_peaks()
+    out = {
+        "consist": spec.consist.name, "vehicles": spec.consist.n,
+        "commands_file": script.source,
+        "duration_s": sim.time_s, "final_speed_kmh": float(snap.speed_m_s[0]) * KMH_PER_MS,
+        "distance_travelled_m": float(snap.position_m[0] - start_m[0]),
+        "stopping_distance_m": sim.stopping_distance_m,
+        "stop_time_s": None if sim.stop_time_s is None else sim.stop_time_s - sim.command_time_s,
+        "peak_draft_kN": peaks.draft_N / 1e3, "peak_draft_coupler": peaks.draft_coupler,
+        "peak_buff_kN": peaks.buff_N / 1e3, "peak_buff_coupler": peaks.buff_coupler,
+        "events": [dict(e.detail, kind=e.kind, time_s=e.time_s) for e in events],
+        "wall_time_s": wall, "real_time_factor": sim.time_s / wall if wall > 0 else None,
+    }
+    if args.json:
+        print(json.dumps(out, indent=2))
+        return 0
+    print(f"train            {spec.consist.name}: {spec.consist.n} vehicles; "
+          f"script {script.source}")
+    print(f"ran              {sim.time_s:.1f} s, {out['distance_travelled_m']:.1f} m, final "
+          f"speed {out['final_speed_kmh']:.1f} km/h")
+    for e in events:
+        print(f"event            {e.describe()}")
+    print(f"peak draft       {out['peak_draft_kN']:.1f} kN at coupler {peaks.draft_coupler}")
+    print(f"peak buff        {out['peak_buff_kN']:.1f} kN at coupler {peaks.buff_coupler}")
+    print(f"cost             {wall * 1e3:.0f} ms wall, {out['real_time_factor']:.0f}x real time")
+    return 0

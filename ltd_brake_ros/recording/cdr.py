@@ -1,0 +1,60 @@
+"""Decoding the recorded CDR payloads the analysis reads, without ROS.
+
+The payloads are as ``rclpy.serialization.serialize_message`` writes them: a 4-byte
+encapsulation header (byte 1 odd: little endian), then OMG CDR with each value aligned to its
+size, counted from the end of that header.
+"""
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+
+__all__ = ["decode_float64_array", "decode_bool"]
+
+
+def _align(pos: int, n: int) -> int:
+    # CDR aligns relative to the end of the 4-byte encapsulation header
+    return 4 + ((pos - 4 + n - 1) & ~(n - 1))
+
+
+def decode_float64_array(data: bytes) -> np.ndarray:
+    """Values of a CDR-serialized ``std_msgs/msg/Float64MultiArray``, without ROS.
+
+    Parameters
+    ----------
+    data : bytes
+        The message as serialized by rclpy (4-byte encapsulation header, then CDR).
+
+    Returns
+    -------
+    ndarray
+        A read-only view of ``data`` (float64).
+    """
+    end = "<" if data[1] & 1 else ">"
+    u32 = struct.Struct(end + "I").unpack_from
+    (ndim,) = u32(data, 4)
+    pos = 8
+    for _ in range(ndim):
+        pos = _align(pos, 4)
+        (slen,) = u32(data, pos)
+        pos = _align(pos + 4 + slen, 4) + 8  # label, then size and stride
+    pos = _align(pos, 4) + 4  # data_offset
+    pos = _align(pos, 4)
+    (n,) = u32(data, pos)
+    pos = _align(pos + 4, 8)
+    return np.frombuffer(data, dtype=end + "f8", count=n, offset=pos)
+
+
+def decode_bool(data: bytes) -> bool:
+    """Value of a CDR-serialized ``std_msgs/msg/Bool``.
+
+    Parameters
+    ----------
+    data : bytes
+
+    Returns
+    -------
+    bool
+    """
+    return data[4] != 0

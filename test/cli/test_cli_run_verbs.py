@@ -1,0 +1,58 @@
+"""``ltd-brake simulate`` and ``validate``: what they print and how they refuse bad input."""
+from __future__ import annotations
+
+import json
+
+import pytest
+import yaml
+
+from ltd_brake_ros.cli.main import main
+from ltd_brake_ros.inputs import get_scenario
+from ltd_brake_ros.physics.constants import STANDSTILL_M_S
+from ltd_brake_ros.studies.runs import emergency_stop
+
+
+def one_line_error(capsys, verb: str) -> str:
+    err = capsys.readouterr().err
+    assert err.startswith(f"ltd-brake {verb}: error:") and err.count("\n") == 1, err
+    return err
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["validate", "--scenarios", "13"], ["--scenarios", "unknown scenario 13", "1-12"]),
+    (["validate", "--scenarios", "6-1"], ["--scenarios", "1-6,9"]),
+    (["validate", "--jobs", "0"], ["--jobs", "at least 1"]),
+    (["simulate"], ["--scenario/--consist"]),
+    (["simulate", "--scenario", "6", "--speed-kmh", "500"], ["--speed-kmh", "400 km/h"]),
+    (["simulate", "--scenario", "13"], ["--scenario/--consist", "unknown scenario"]),
+])
+def test_bad_options_are_one_line_naming_the_option(capsys, argv, words):
+    assert main(argv) == 2
+    err = one_line_error(capsys, argv[0])
+    for w in words:
+        assert w in err
+
+
+def test_validate_json_holds_the_run_and_the_paper(capsys):
+    assert main(["validate", "--scenarios", "7", "--jobs", "1", "--json"]) == 0
+    (row,) = json.loads(capsys.readouterr().out)
+    sc = get_scenario(7)
+    ref = emergency_stop(sc.consist(), sc.speed_kmh)
+    assert row["scenario"] == 7 and row["paper"] == sc.paper
+    assert row["ours"]["stopping_distance_m"] == ref.stopping_distance_m
+    assert row["ours"]["peak_buff_kN"] == ref.peak_buff_kN < 0
+
+
+def test_scripted_emergency_from_standstill_start_travels_its_stopping_distance(tmp_path, capsys):
+    # emergency at t = 0: the head's travel to the stop is the stopping distance itself
+    script = tmp_path / "stop.yaml"
+    script.write_text(yaml.safe_dump({"commands": [{"t_s": 0.0, "emergency": True}]}))
+    assert main(["simulate", "--scenario", "7", "--start-chainage-m", "1234.5",
+                 "--commands", str(script), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    # the run ends with the 0.1 s chunk in which the train stopped: meanwhile every vehicle is
+    # slower than STANDSTILL_M_S, so the head moves less than that times 0.1 s after the stop
+    assert out["distance_travelled_m"] == pytest.approx(out["stopping_distance_m"],
+                                                        abs=STANDSTILL_M_S * 0.1)
+    assert out["stopping_distance_m"] > 100.0 and out["final_speed_kmh"] == pytest.approx(0, abs=0.01)
+    assert out["peak_buff_kN"] < 0 < out["peak_draft_kN"] and out["peak_draft_coupler"] >= 1

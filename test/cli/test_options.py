@@ -1,0 +1,31 @@
+"""Options the verbs share: the scenario list, counts, the run specification."""
+from __future__ import annotations
+
+import pytest
+
+from ltd_brake_ros.cli.options import parse_scenarios, positive_int
+from ltd_brake_ros.inputs import InputError
+
+
+@pytest.mark.parametrize("text, numbers", [
+    ("6", [6]), ("1-6", [1, 2, 3, 4, 5, 6]), ("1-3,9", [1, 2, 3, 9]), ("2, 6 ,12", [2, 6, 12]),
+    ("3-3", [3]), ("2,1-3", [2, 1, 3]), ("1,,2,", [1, 2]),
+])
+def test_scenario_lists_keep_order_and_each_number_once(text, numbers):
+    assert parse_scenarios(text) == numbers
+
+
+@pytest.mark.parametrize("text, words", [
+    ("1-x", "expected numbers and ranges like 1-6,9"), ("6-1", "expected numbers and ranges"),
+    ("a", "expected numbers"), ("-2", "expected numbers"), (",", "is empty"), ("", "is empty"),
+])
+def test_bad_scenario_lists_name_the_option(text, words):
+    with pytest.raises(InputError) as err:
+        parse_scenarios(text, "--rows")
+    assert err.value.field == "--rows" and words in err.value.reason
+
+
+def test_counts_must_be_positive():
+    assert positive_int(None, "--jobs") is None and positive_int(3, "--jobs") == 3
+    with pytest.raises(InputError, match="--jobs: must be at least 1, got 0"):
+        positive_int(0, "--jobs")
