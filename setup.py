@@ -18,14 +18,30 @@ setup(
         for folder in sorted(p.rstrip("/") for p in glob("config/*/"))
     ],
     python_requires=">=3.10",
+    # every runtime import of the library and of ltd-brake (simulate, validate, calibrate,
+    # report, recover); requirements.txt pins the versions tested
     install_requires=[
         "numpy>=1.26,<3",
         "scipy>=1.11",
         "pyyaml>=6.0",
         "numba>=0.60",
+        "matplotlib>=3.8",  # report: plots
+        "tqdm>=4.66",  # calibrate: progress bar
+        "mcap>=1.6,<2",  # recording: MCAP records, reading
+        "zstandard>=0.22",  # recording: zstd chunks
+        "lz4>=4.3",  # recording: lz4 chunks
     ],
     extras_require={
-        "test": ["pytest>=8", "hypothesis>=6.100"],
+        # the ROS 2 Jazzy wheels the nodes need (sim_node, replay_node); a ROS install gets
+        # them from package.xml instead
+        "ros": [
+            "ros-jazzy-rclpy>=7.1,<8",
+            "ros-jazzy-common-interfaces>=5.3,<6",
+            "ros-jazzy-rosgraph-msgs>=2.0,<3",
+            "ros-jazzy-rmw-fastrtps-cpp>=8.4,<9",
+        ],
+        "test": ["pytest>=8", "pytest-timeout>=2.3", "hypothesis>=6.100", "rosbags>=0.10",
+                 "mcap-ros2-support>=0.5"],
     },
     zip_safe=True,
     maintainer="ltd_brake_ros maintainers",

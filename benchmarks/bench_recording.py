@@ -3,8 +3,8 @@ per simulated second, for the 33-vehicle (paper scenario 6) and a 150-vehicle tr
 
 Each chunk does what the node does: advance the simulator by 0.02 s, build and serialize the
 five per-vehicle / per-coupler Float64MultiArray messages and the Clock, and (when recording)
-hand the bytes to :class:`~ltd_brake_ros.bag.BagWriter`. Runs are repeated and interleaved; the
-fastest of each is reported (the machine is shared and noisy).
+hand the bytes to :class:`~ltd_brake_ros.recording.writer.BagWriter`. Runs are repeated and
+interleaved; the fastest of each is reported (the machine is shared and noisy).
 
     ./dev.sh run python benchmarks/bench_recording.py [--seconds 30] [--repeat 3]
     ./dev.sh run python benchmarks/bench_recording.py --long-report   # 1 h x 50 Hz x 150 report
@@ -25,7 +25,8 @@ from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-from ltd_brake_ros.recording.bag import BagWriter, qos_profiles_yaml
+from ltd_brake_ros.recording.qos import qos_profiles_yaml
+from ltd_brake_ros.recording.writer import BagWriter
 from ltd_brake_ros.inputs import (consist_from_mapping, get_scenario, load_brake_params,
                                   load_coupler_lut)
 from ltd_brake_ros.simulator import Commands, Simulator
