@@ -1,0 +1,156 @@
+"""Diagnostics values of the plant: achieved pace, overruns, brake state, coupler peaks.
+
+Computed without ROS; the node turns a :class:`PlantStatus` into a
+``diagnostic_msgs/DiagnosticStatus`` about once per wall second.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..physics.constants import KMH_PER_MS
+from ..simulator import Commands, Simulator
+
+#: Severity levels, numbered as in ``diagnostic_msgs/DiagnosticStatus``.
+OK, WARN, ERROR = 0, 1, 2
+#: Wall time between two diagnostics reports [s].
+DIAGNOSTICS_PERIOD_S = 1.0
+
+
+@dataclass(frozen=True)
+class PlantStatus:
+    """One diagnostics report.
+
+    Attributes
+    ----------
+    level : int
+        :data:`OK`, :data:`WARN` or :data:`ERROR`.
+    message : str
+        One line: the state, or what is wrong.
+    values : dict of str to str
+        Key/values in a fixed order (units in the keys).
+    """
+
+    level: int
+    message: str
+    values: dict
+
+
+class PaceWindow:
+    """Achieved real-time factor and overruns between two reports.
+
+    Parameters
+    ----------
+    now : float
+        Wall time the first window starts [s].
+    """
+
+    def __init__(self, now: float):
+        self._wall, self._sim_s, self._overruns = now, 0.0, 0
+
+    def restart(self, now: float, sim_s: float = 0.0) -> None:
+        """Start the window again at wall time ``now`` and simulated time ``sim_s`` [s]."""
+        self._wall, self._sim_s = now, sim_s
+
+    def take(self, now: float, sim_s: float, overruns: int) -> tuple[float, int, float]:
+        """Close the window at ``now`` and start the next one.
+
+        Parameters
+        ----------
+        now : float
+            Wall time [s].
+        sim_s : float
+            Simulated time reached [s].
+        overruns : int
+            Overruns counted since start-up.
+
+        Returns
+        -------
+        achieved : float
+            Simulated over wall time in the window (0 for an empty window) [-].
+        new_overruns : int
+            Overruns in the window.
+        window_s : float
+            Length of the window [s].
+        """
+        window_s = now - self._wall
+        achieved = (sim_s - self._sim_s) / window_s if window_s > 0.0 else 0.0
+        new = overruns - self._overruns
+        self._wall, self._sim_s, self._overruns = now, sim_s, overruns
+        return achieved, new, window_s
+
+
+def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: float = 0.0,
+                 window_s: float = 0.0, new_overruns: int = 0, chunks: int = 0,
+                 overruns: int = 0, real_time_factor: float = 0.0,
+                 commands: Commands = Commands(), rejected: int = 0, handled: int = 0,
+                 recording: str = "off", recording_error: str | None = None) -> PlantStatus:
+    """The diagnostics report of the plant.
+
+    Parameters
+    ----------
+    sim : Simulator
+        The plant's simulator (time, brake command, speed, coupler peaks, stop).
+    state : str
+        ``failed``, ``finished``, ``lockstep``, ``paused`` or ``running``.
+    reason : str
+        Why it failed or finished (the message then).
+    achieved, window_s, new_overruns
+        What :meth:`PaceWindow.take` returned.
+    chunks, overruns : int
+        Chunks advanced and overruns since start-up.
+    real_time_factor : float
+        The set real-time factor [-].
+    commands : Commands
+        The inputs in force.
+    rejected, handled : int
+        Input messages rejected, and handled in all.
+    recording : str
+        The bag folder, or ``off``, ``failed``, ``finished``.
+    recording_error : str or None
+        Why the recording stopped.
+
+    Returns
+    -------
+    PlantStatus
+    """
+    if state == "failed":
+        level, message = ERROR, reason
+    elif state == "finished":
+        level, message = OK, reason
+    else:
+        level, message = OK, state
+        if new_overruns:
+            level, message = WARN, f"{new_overruns} chunk overrun(s) in the last {window_s:.1f} s"
+    peaks = sim.coupler_peaks()
+    values = {
+        "state": state,
+        "sim_time_s": f"{sim.time_s:.3f}",
+        "real_time_factor": f"{real_time_factor:g}",
+        "achieved_real_time_factor": f"{achieved:.3f}",
+        "chunks": str(chunks),
+        "chunk_overruns": str(overruns),
+        "emergency_command": "true" if commands.emergency else "false",
+        "brake_command_time_s": "none" if sim.command_time_s is None
+        else f"{sim.command_time_s:.3f}",
+        "head_speed_kmh": f"{float(sim.snapshot().speed_m_s[0]) * KMH_PER_MS:.3f}",
+        "peak_draft_kN": f"{peaks.draft_N / 1e3:.3f}",
+        "peak_draft_coupler": str(peaks.draft_coupler),
+        "peak_buff_kN": f"{peaks.buff_N / 1e3:.3f}",
+        "peak_buff_coupler": str(peaks.buff_coupler),
+        "couplers_beyond_lut": str(int((sim.lut_excursion_m != 0.0).sum())),
+        "brake_demand": f"{commands.brake_demand:g}",
+        "traction_command": f"{commands.traction:g}",
+        "rejected_inputs": str(rejected),
+        "inputs_handled": str(handled),
+        "recording": recording,
+    }
+    if recording_error:
+        values["recording_error"] = recording_error
+        if level == OK:
+            level, message = WARN, "recording stopped"
+    if sim.stopping_distance_m is not None:
+        values["stopping_distance_m"] = f"{sim.stopping_distance_m:.3f}"
+        values["stop_time_s"] = f"{sim.stop_time_s - (sim.command_time_s or 0.0):.3f}"
+    if state == "failed":
+        values["error"] = reason
+    return PlantStatus(level, message, values)

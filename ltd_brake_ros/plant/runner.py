@@ -1,0 +1,472 @@
+"""The plant thread: advances the simulator in chunks, paced by a clock it is given.
+
+One thread owns the simulator and does every advance and every publication; other threads
+(a ROS executor, a test) only queue jobs (:meth:`PlantRunner.submit`) that the plant thread runs
+between two chunks. So a chunk is always advanced and published in one place and lock-step runs
+are deterministic. Free-running chunks are due at ``start + k * chunk_s / real_time_factor`` on
+the wall clock; a chunk finished after the next one was due counts as an overrun and restarts
+the schedule instead of catching up.
+
+Nothing here imports ROS: the host passes callbacks that publish a state, publish a diagnostics
+report and observe a handled input, a logger, and the clock (:class:`~.pacing.Clock`), so pacing,
+lock-step and the run policy are tested with a fake clock.
+"""
+from __future__ import annotations
+
+import queue
+import threading
+from collections import deque
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable, Mapping
+
+from ..inputs.commands import COMMAND_RANGES
+from ..simulator import Commands, SimulationError, Simulator, Snapshot
+from .diagnostics import DIAGNOSTICS_PERIOD_S, PaceWindow, PlantStatus, plant_status
+from .pacing import Clock, Pacer
+from .recorder import Recorder
+from .settings import PlantSettings
+
+#: Tolerance when comparing simulated times built from summed chunks [s].
+TIME_EPS_S = 1e-9
+#: Pacing lateness samples kept for statistics (bounded: memory stays flat on long runs).
+LATENESS_SAMPLES = 10_000
+#: Wall time between two warnings about rejected inputs of one kind [s].
+REJECT_LOG_PERIOD_S = 2.0
+#: A command flood keeps the receiving thread busy. From this long before a chunk is due until
+#: the plant has published it, a receiving callback steps aside (sleeps: frees the GIL and
+#: the CPU) so the plant keeps its deadline on a loaded machine [s]; checked every
+#: YIELD_POLL_S, for at most YIELD_MAX_S per message.
+YIELD_LEAD_S = 0.002
+YIELD_POLL_S = 0.0005
+YIELD_MAX_S = 0.01
+#: Inputs the plant takes: the emergency brake (bool) and the numeric :data:`COMMAND_RANGES`.
+INPUTS = ("emergency", *COMMAND_RANGES)
+
+
+@dataclass
+class PacingStats:
+    """What pacing cost since start-up (read by diagnostics and the benchmark).
+
+    Attributes
+    ----------
+    chunks : int
+        Chunks advanced and published.
+    overruns : int
+        Times the plant was still busy when the next chunk was due (schedule restarted then).
+    lateness_s : deque of float
+        Publication time minus deadline of the most recent paced chunks [s].
+    """
+
+    chunks: int = 0
+    overruns: int = 0
+    lateness_s: deque = field(default_factory=lambda: deque(maxlen=LATENESS_SAMPLES))
+
+
+class Job:
+    """Work for the plant thread; another thread may wait for its ``result``."""
+
+    __slots__ = ("fn", "done", "result")
+
+    def __init__(self, fn: Callable[[], Any]):
+        self.fn, self.done, self.result = fn, threading.Event(), None
+
+
+class PlantRunner:
+    """Runs a simulator as a live plant (see the module docstring).
+
+    Parameters
+    ----------
+    sim : Simulator
+        Advanced only by the plant thread once :meth:`start` ed.
+    settings : PlantSettings
+    publish_state : callable
+        ``publish_state(snapshot)`` after every chunk and reset (and once at the start);
+        :attr:`stamp_ns` is the snapshot's time then.
+    publish_status : callable
+        ``publish_status(PlantStatus)`` about once per wall second.
+    log : logger
+        Has ``debug``, ``info``, ``warning``, ``error`` and ``fatal``.
+    input_handled : callable, optional
+        ``input_handled(name, value, message)`` for every input the plant takes, accepted or
+        not, before it is applied (``message`` is what :meth:`receive` was given, None for the
+        plant's own auto brake).
+    recorder : Recorder, optional
+        Its lifecycle follows the run (flushed when due, reopened on reset, closed on failure
+        and close).
+    labels : mapping, optional
+        Input name to the name used in log lines (e.g. the topic).
+    clock : Clock, optional
+        Wall clock, sleep and wait primitives.
+    host_ok : callable, optional
+        ``host_ok() -> bool``; False once the host is shutting down (errors are then expected
+        and not logged).
+    """
+
+    def __init__(self, sim: Simulator, settings: PlantSettings, *,
+                 publish_state: Callable[[Snapshot], None],
+                 publish_status: Callable[[PlantStatus], None], log,
+                 input_handled: Callable[[str, Any, Any], None] | None = None,
+                 recorder: Recorder | None = None, labels: Mapping[str, str] | None = None,
+                 clock: Clock = Clock(), host_ok: Callable[[], bool] = lambda: True):
+        self.sim, self.settings, self.recorder = sim, settings, recorder
+        self._publish_state, self._publish_status = publish_state, publish_status
+        self._input_handled = input_handled or (lambda name, value, message: None)
+        self._log, self._labels, self._clock, self._host_ok = log, dict(labels or {}), clock, \
+            host_ok
+        self.real_time_factor = settings.real_time_factor
+        #: Chunks advanced per :meth:`step` request (may change at run time).
+        self.steps_per_call = settings.steps_per_call
+        self.stats = PacingStats()
+        #: Set when the plant should shut down (a run-policy limit, or the plant thread died).
+        self.finished = threading.Event()
+        #: Why it finished (for diagnostics).
+        self.finish_reason = ""
+        #: 1 once the plant thread died of an unexpected error.
+        self.exit_status = 0
+        #: Why the simulator stopped advancing (None while it works; :meth:`reset` clears it).
+        self.failure: str | None = None
+        self.paused = False
+        #: The inputs in force.
+        self.commands = Commands()
+        #: Inputs handled (received or self-issued), accepted or rejected.
+        self.handled = 0
+        self.rejected: dict[str, int] = {}
+        #: Simulated time of the last published state [ns].
+        self.stamp_ns = 0
+        self._next_reject_log: dict[str, float] = {}
+        self._auto_brake_done = False
+        self._lut_warned = False
+        self._jobs: queue.SimpleQueue[Job] = queue.SimpleQueue()
+        self._wake = threading.Event()
+        self._quit = threading.Event()
+        self._thread = threading.Thread(target=self.run, name="plant", daemon=True)
+        now = clock.monotonic()
+        self._pacer = Pacer(self.real_time_factor, monotonic=clock.monotonic)
+        self._next_index = 1
+        self._window = PaceWindow(now)
+        self._next_status_wall = 0.0
+
+    # ------------------------------------------------------------------ any thread
+
+    @property
+    def sim_time_s(self) -> float:
+        """Simulated time of the last published state [s]."""
+        return self.stamp_ns / 1e9
+
+    def start(self) -> None:
+        """Start the plant thread (publishes the initial state, then runs)."""
+        self._thread.start()
+
+    def close(self) -> None:
+        """Stop the plant thread and finish the recording."""
+        self._quit.set()
+        self._wake.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=10.0)
+        if self.recorder is not None:
+            self.recorder.close()
+
+    def submit(self, fn: Callable[[], Any]) -> Job:
+        """Queue ``fn`` to run on the plant thread between two chunks."""
+        job = Job(fn)
+        self._jobs.put(job)
+        self._wake.set()
+        return job
+
+    def result(self, job: Job) -> tuple[bool, str]:
+        """Wait for a request's ``(success, message)``; a failure if the plant is not running."""
+        while not self._clock.wait(job.done, 0.5):
+            if not self._thread.is_alive():
+                return False, "the plant is not running (shutting down)"
+        return job.result
+
+    def receive(self, name: str, value: Any, message: Any = None) -> Job:
+        """Queue an input: ``emergency`` (bool) or a key of :data:`COMMAND_RANGES` (float)."""
+        if name not in INPUTS:
+            raise KeyError(f"unknown input {name!r}; expected one of {', '.join(INPUTS)}")
+        return self.submit(lambda: self._on_input(name, value, message))
+
+    def reset(self) -> Job:
+        """Request the initial state (t = 0, brake released); a new bag when recording."""
+        return self.submit(self._reset)
+
+    def pause(self, pause: bool) -> Job:
+        """Request a pause (True) or the end of one (False)."""
+        return self.submit(lambda: self._pause(bool(pause)))
+
+    def step(self) -> Job:
+        """Request :attr:`steps_per_call` chunks (lock-step mode or paused only)."""
+        chunks = self.steps_per_call
+        return self.submit(lambda: self._step(chunks))
+
+    def set_real_time_factor(self, value: float) -> Job:
+        """Request a new real-time factor; the schedule restarts from now."""
+        return self.submit(lambda: self._set_real_time_factor(value))
+
+    def yield_to_plant(self) -> None:
+        """On a receiving thread: wait while a paced chunk is due (see YIELD_LEAD_S).
+
+        Reads the plant's schedule without a lock: a torn read costs at most one needless
+        or missed pause, never a wrong chunk. The inputs themselves are never dropped here.
+        """
+        if self.real_time_factor <= 0.0 or not self._free_running():
+            return
+        monotonic = self._clock.monotonic
+        end = monotonic() + YIELD_MAX_S
+        while True:
+            now = monotonic()
+            if now < self._due() - YIELD_LEAD_S or now >= end:
+                return
+            self._clock.sleep(YIELD_POLL_S)
+
+    # ------------------------------------------------------------------ plant thread
+
+    def run(self) -> None:
+        """The plant thread's loop, until :meth:`close`."""
+        try:
+            self.begin()
+            while not self._quit.is_set():
+                self._wake.clear()
+                timeout = self.poll()
+                if timeout > 0.0:
+                    self._clock.wait(self._wake, timeout)
+        except Exception as exc:  # noqa: BLE001
+            if self._host_ok() and not self._quit.is_set():
+                self._log.fatal(f"plant thread stopped: {type(exc).__name__}: {exc}")
+                self.exit_status = 1
+                self.finished.set()
+            # else: the host was shut down under us (SIGINT/SIGTERM); it cleans up
+
+    def begin(self) -> None:
+        """Publish the initial state and start the schedule (first of the plant thread)."""
+        now = self._clock.monotonic()
+        self._publish(self.sim.snapshot())
+        self._restart_schedule(now)
+        self._window.restart(now)
+        self._next_status_wall = now + DIAGNOSTICS_PERIOD_S
+
+    def poll(self) -> float:
+        """Run the queued jobs, flush, report and advance a chunk if one is due.
+
+        Returns
+        -------
+        float
+            Wall time until something is due [s]; 0 after a chunk.
+        """
+        self._run_jobs()
+        if self.recorder is not None:
+            self.recorder.flush_if_due()
+        now = self._maybe_report()
+        timeout = self._next_status_wall - now
+        if self._free_running():
+            due = self._due()
+            if due <= now:
+                self._paced_chunk(due)
+                return 0.0
+            timeout = min(timeout, due - now)
+        if self.recorder is not None:
+            # idle (paused, lock-step, slow pace): still flush within the interval
+            timeout = min(timeout, self.recorder.seconds_until_flush())
+        return max(timeout, 0.0)
+
+    def _status(self, now: float) -> PlantStatus:
+        # the diagnostics report at wall time ``now``; starts the next pace window
+        sim, stats = self.sim, self.stats
+        achieved, new, window_s = self._window.take(now, sim.time_s, stats.overruns)
+        if self.failure:
+            state, reason = "failed", self.failure
+        elif self.finished.is_set():
+            state, reason = "finished", self.finish_reason
+        else:
+            state = "lockstep" if self.settings.lockstep else \
+                "paused" if self.paused else "running"
+            reason = ""
+        rec = self.recorder
+        return plant_status(
+            sim, state=state, reason=reason, achieved=achieved, window_s=window_s,
+            new_overruns=new, chunks=stats.chunks, overruns=stats.overruns,
+            real_time_factor=self.real_time_factor, commands=self.commands,
+            rejected=sum(self.rejected.values()), handled=self.handled,
+            recording="off" if rec is None else rec.state,
+            recording_error=None if rec is None else rec.error)
+
+    def _run_jobs(self) -> None:
+        # only the jobs queued so far: a flood of inputs must not starve the chunks
+        for _ in range(self._jobs.qsize()):
+            try:
+                job = self._jobs.get_nowait()
+            except queue.Empty:
+                return
+            try:
+                job.result = job.fn()
+            except Exception as exc:  # noqa: BLE001 - a bad job must not stop the plant
+                if self._host_ok():  # else: shutting down, the outputs are gone
+                    self._log.error(f"{type(exc).__name__}: {exc}")
+                job.result = (False, f"{type(exc).__name__}: {exc}")
+            finally:
+                job.done.set()
+
+    def _maybe_report(self) -> float:
+        now = self._clock.monotonic()
+        if now >= self._next_status_wall:
+            self._report(now)
+        return now
+
+    def _report(self, now: float) -> None:
+        self._next_status_wall = now + DIAGNOSTICS_PERIOD_S
+        self._publish_status(self._status(now))
+
+    def _free_running(self) -> bool:
+        return not (self.settings.lockstep or self.paused or self.failure
+                    or self.finished.is_set())
+
+    def _due(self) -> float:
+        """Wall deadline of the next chunk [s] (``-inf`` as fast as possible)."""
+        return self._pacer.due_at(self._next_index * self.settings.chunk_s)
+
+    def _restart_schedule(self, now: float, first_due_now: bool = False) -> None:
+        # the next chunk is due one period from now (or at once), later ones follow at the period
+        self._pacer.rebase(0.0, now)
+        self._next_index = 0 if first_due_now else 1
+
+    def _paced_chunk(self, due: float) -> None:
+        self._run_chunk()
+        if self.real_time_factor <= 0.0:
+            self._clock.sleep(0)  # let a receiving thread take the GIL between chunks
+            return
+        done = self._clock.monotonic()
+        self.stats.lateness_s.append(done - due)
+        self._next_index += 1
+        if done > self._due():
+            # behind schedule: count it and restart the schedule instead of catching up
+            self.stats.overruns += 1
+            self._restart_schedule(done, first_due_now=True)
+
+    def _publish(self, snap: Snapshot) -> None:
+        self.stamp_ns = round(snap.time_s * 1e9)
+        self._publish_state(snap)
+
+    def _run_chunk(self) -> bool:
+        """Advance one chunk and publish the state; False if the simulator failed."""
+        sim, s = self.sim, self.settings
+        if 0.0 <= s.auto_brake_at_s <= sim.time_s + TIME_EPS_S and not self._auto_brake_done:
+            self._auto_brake_done = True
+            self._on_input("emergency", True, None)
+        try:
+            snap = sim.advance(s.chunk_s, self.commands)
+        except SimulationError as exc:
+            self._fail(str(exc))
+            return False
+        except Exception as exc:  # noqa: BLE001 - any simulator fault stops the plant, not the host
+            self._fail(f"{type(exc).__name__}: {exc}")
+            return False
+        self.stats.chunks += 1
+        self._publish(snap)
+        log = self._log
+        for event in snap.events:
+            if event.kind != "coupler_out_of_lut":
+                log.info(event.describe())
+            elif self._lut_warned:
+                log.debug(event.describe())
+            else:
+                # long trains push dozens of couplers past the table: warn once per run
+                self._lut_warned = True
+                log.warning(f"{event.describe()}; further couplers are logged at debug level "
+                            "and counted in diagnostics")
+        if 0.0 <= s.max_sim_time_s <= snap.time_s + TIME_EPS_S:
+            log.info(f"max_sim_time_s = {s.max_sim_time_s:g} s reached; shutting down")
+            self._finish("max_sim_time_s reached")
+        if sim.stop_time_s is not None and \
+                0.0 <= s.shutdown_after_stop_s <= snap.time_s - sim.stop_time_s + TIME_EPS_S:
+            log.info(f"{s.shutdown_after_stop_s:g} s after the stop; shutting down")
+            self._finish("shutdown_after_stop_s reached")
+        return True
+
+    def _finish(self, reason: str) -> None:
+        self.finish_reason = reason
+        self.finished.set()
+
+    def _fail(self, reason: str) -> None:
+        self.failure = reason
+        self._log.error(f"simulation failed at t = {self.sim.time_s:.3f} s: {reason}; "
+                        "the plant stopped advancing, call ~/reset to recover")
+        self._report(self._clock.monotonic())
+        # the run is over: finish its bag (ending with the ERROR above) so that it is complete
+        # and readable now, not only once the host exits; a reset starts the next one
+        if self.recorder is not None:
+            self.recorder.close()
+
+    def _on_input(self, name: str, value: Any, message: Any) -> None:
+        self.handled += 1
+        self._input_handled(name, value, message)
+        if name == "emergency":
+            # held until changed; the simulator ignores a repeated true
+            self.commands = replace(self.commands, emergency=bool(value))
+            return
+        lo, hi = COMMAND_RANGES[name]
+        if lo <= value <= hi:  # NaN and infinities fail the comparison
+            self.commands = replace(self.commands, **{name: float(value)})
+            return
+        # rejected: counted, logged at most every REJECT_LOG_PERIOD_S, the old value kept
+        self.rejected[name] = self.rejected.get(name, 0) + 1
+        now = self._clock.monotonic()
+        if now >= self._next_reject_log.get(name, 0.0):
+            self._next_reject_log[name] = now + REJECT_LOG_PERIOD_S
+            self._log.warning(
+                f"{self._labels.get(name, name)}: rejected {value!r}, expected a finite number "
+                f"from {lo:g} to {hi:g}; keeping the previous value ({self.rejected[name]} "
+                "rejected so far)")
+
+    def _reset(self) -> tuple[bool, str]:
+        snap = self.sim.reset()
+        if self.recorder is not None:
+            # one run per bag (the report assumes it): finish the current one, unless a
+            # simulator failure or a write error already ended it, and start the next
+            self.recorder.reopen()
+        self.commands = Commands()
+        self._auto_brake_done = False
+        self._lut_warned = False
+        self.failure = None
+        self._publish(snap)
+        now = self._clock.monotonic()
+        self._restart_schedule(now)
+        self._window.restart(now, 0.0)
+        self._log.info("reset: initial state, brake released, t = 0 s")
+        return True, "reset to the initial state (brake released, t = 0 s)"
+
+    def _pause(self, pause: bool) -> tuple[bool, str]:
+        if self.paused and not pause:
+            self._restart_schedule(self._clock.monotonic())
+        self.paused = pause
+        text = f"{'paused' if pause else 'running'} at t = {self.sim.time_s:.3f} s"
+        if self.settings.lockstep:
+            text += " (lock-step mode: the plant advances only on ~/step)"
+        return True, text
+
+    def _step(self, chunks: int) -> tuple[bool, str]:
+        if not (self.settings.lockstep or self.paused):
+            return False, "the plant is free-running: pause it (~/pause) or start it with " \
+                          "lockstep:=true to step it"
+        if self.failure:
+            return False, f"simulation failed: {self.failure}; call ~/reset"
+        if self.finished.is_set():
+            return False, "max_sim_time_s reached; the node is shutting down"
+        done = 0
+        while done < chunks and not self.finished.is_set():
+            if not self._run_chunk():
+                return False, f"simulation failed: {self.failure}; call ~/reset"
+            done += 1
+            self._maybe_report()
+        c = self.commands
+        # the inputs the chunks ran with, so a controller can check its last command arrived
+        return True, (f"advanced {done} chunk(s) to t = {self.sim.time_s:.3f} s with "
+                      f"emergency={str(c.emergency).lower()} "
+                      f"brake_demand={c.brake_demand:g} traction={c.traction:g} "
+                      f"(inputs handled: {self.handled})")
+
+    def _set_real_time_factor(self, value: float) -> None:
+        now = self._clock.monotonic()
+        self.real_time_factor = float(value)
+        self._pacer.set_rate(self.real_time_factor, now)
+        self._restart_schedule(now)
+        self._log.info(f"real_time_factor set to {value:g}")

@@ -1,0 +1,55 @@
+"""What the plant runtime is told: chunk length, pace, mode and run policy."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+#: Largest accepted real-time factor [-].
+MAX_REAL_TIME_FACTOR = 1000.0
+
+
+class StartupError(Exception):
+    """A setting value the plant cannot start with.
+
+    Parameters
+    ----------
+    parameter : str
+        Name of the offending setting (the node parameter).
+    reason : str
+        What is wrong, in words a user can act on.
+    """
+
+    def __init__(self, parameter: str, reason: str):
+        self.parameter, self.reason = parameter, reason
+        super().__init__(f"parameter {parameter}: {reason}")
+
+
+@dataclass(frozen=True)
+class PlantSettings:
+    """How the plant advances and when it ends.
+
+    Attributes
+    ----------
+    chunk_s : float
+        Simulated time advanced and published per chunk [s].
+    real_time_factor : float
+        Simulated seconds per wall second; 0 = as fast as possible [-].
+    lockstep : bool
+        Advance only when asked (:meth:`PlantRunner.step`).
+    steps_per_call : int
+        Chunks advanced per step request.
+    auto_brake_at_s : float
+        Apply the emergency brake at the first chunk boundary at or after this simulated time
+        [s]; negative = never.
+    max_sim_time_s : float
+        Finish once the simulated time reaches this [s]; negative = never.
+    shutdown_after_stop_s : float
+        Finish this long after the train stopped [s simulated]; negative = never.
+    """
+
+    chunk_s: float = 0.02
+    real_time_factor: float = 1.0
+    lockstep: bool = False
+    steps_per_call: int = 1
+    auto_brake_at_s: float = -1.0
+    max_sim_time_s: float = -1.0
+    shutdown_after_stop_s: float = -1.0

@@ -1,0 +1,66 @@
+"""Diagnostics values: the pace window and the report after a real emergency stop."""
+from __future__ import annotations
+
+import pytest
+
+from plant_helpers import make_plant
+from ltd_brake_ros.plant.diagnostics import OK, PaceWindow
+
+KEYS = ["state", "sim_time_s", "real_time_factor", "achieved_real_time_factor", "chunks",
+        "chunk_overruns", "emergency_command", "brake_command_time_s", "head_speed_kmh",
+        "peak_draft_kN", "peak_draft_coupler", "peak_buff_kN", "peak_buff_coupler",
+        "couplers_beyond_lut", "brake_demand", "traction_command", "rejected_inputs",
+        "inputs_handled", "recording"]
+
+
+def test_pace_window_measures_simulated_over_wall_time_since_the_last_report():
+    window = PaceWindow(10.0)
+    assert window.take(12.0, 1.0, 3) == (0.5, 3, 2.0)
+    assert window.take(13.0, 4.0, 3) == (3.0, 0, 1.0)
+    assert window.take(13.0, 4.0, 5) == (0.0, 2, 0.0)  # an empty window: no pace to speak of
+    window.restart(20.0)  # a reset: simulated time is 0 again, the overrun count goes on
+    assert window.take(21.0, 0.5, 6) == (0.5, 1, 1.0)
+
+
+def test_report_after_an_emergency_stop_shows_the_stop_and_the_peak_coupler_forces():
+    plant = make_plant(real_time_factor=0.0, chunk_s=0.1, auto_brake_at_s=0.0,
+                       shutdown_after_stop_s=0.5)
+    runner = plant.runner
+    while not runner.finished.is_set():
+        runner.poll()
+    plant.clock.t += 1.0
+    runner.poll()
+    status = plant.statuses[-1][1]
+    values, sim = status.values, runner.sim
+    assert list(values) == KEYS + ["stopping_distance_m", "stop_time_s"]
+    assert (status.level, status.message, values["state"]) == \
+        (OK, "shutdown_after_stop_s reached", "finished")
+    peaks = sim.coupler_peaks()
+    # the one peak summary, in kN; a braking train pulls its couplers and pushes some
+    assert (values["peak_draft_kN"], values["peak_draft_coupler"]) == \
+        (f"{peaks.draft_N / 1e3:.3f}", str(peaks.draft_coupler))
+    assert (values["peak_buff_kN"], values["peak_buff_coupler"]) == \
+        (f"{peaks.buff_N / 1e3:.3f}", str(peaks.buff_coupler))
+    assert peaks.draft_N > 0.0 > peaks.buff_N and 1 <= peaks.draft_coupler <= 2
+    assert values["stopping_distance_m"] == f"{sim.stopping_distance_m:.3f}"
+    assert values["stop_time_s"] == f"{sim.stop_time_s:.3f}"  # the command came at t = 0
+    assert values["brake_command_time_s"] == "0.000" and values["emergency_command"] == "true"
+    assert abs(float(values["head_speed_kmh"])) < 0.01
+    assert values["chunks"] == str(runner.stats.chunks) == str(round(sim.time_s / 0.1))
+    assert values["sim_time_s"] == f"{sim.time_s:.3f}"
+    assert (values["recording"], values["couplers_beyond_lut"]) == ("off", "0")
+    assert values["inputs_handled"] == "1" and values["rejected_inputs"] == "0"
+
+
+@pytest.mark.parametrize("settings, state", [({"lockstep": True}, "lockstep"),
+                                             ({"real_time_factor": 1.0}, "running")])
+def test_report_names_the_mode(settings, state):
+    plant = make_plant(**settings)
+    plant.run_until(plant.clock.t + 1.01)
+    status = plant.statuses[-1][1]
+    assert status.values["state"] == status.message == state
+    assert "stopping_distance_m" not in status.values
+    assert plant.request(plant.runner.pause(True))[0]
+    plant.run_until(plant.clock.t + 1.01)
+    assert plant.statuses[-1][1].values["state"] == ("lockstep" if settings.get("lockstep")
+                                                     else "paused")

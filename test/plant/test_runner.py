@@ -1,0 +1,354 @@
+"""PlantRunner on a fake clock: pacing, overruns, lock-step, pause/step/reset, inputs, policy.
+
+The runner is polled the way its thread polls it, on a clock that moves only when the runner
+waits (or a chunk costs time), so wall times are exact and the tests take milliseconds. The
+simulator is the real one, on a three-vehicle train.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from plant_helpers import CostlySimulator, FakeClock, Log, make_plant
+from ltd_brake_ros.plant.diagnostics import ERROR, OK, WARN
+from ltd_brake_ros.plant.pacing import Clock
+from ltd_brake_ros.plant.runner import YIELD_MAX_S, YIELD_POLL_S, PlantRunner
+from ltd_brake_ros.plant.settings import PlantSettings
+from ltd_brake_ros.simulator import Commands, SimulationError
+
+CHUNK_NS = 20_000_000  # the default chunk, 0.02 s
+
+
+def chunk_walls(plant):
+    """Wall times of the chunks published after the initial state."""
+    return [wall for wall, _ in plant.states[1:]]
+
+
+# --------------------------------------------------------------------------- pacing
+
+
+@pytest.mark.parametrize("rtf", [0.5, 1.0, 2.0, 10.0])
+def test_free_running_chunks_are_published_at_their_deadlines(rtf):
+    plant = make_plant(real_time_factor=rtf)
+    start, period = plant.clock.t, 0.02 / rtf
+    plant.run_until(start + 3.0 + period / 2)
+    n = round(3.0 / period)
+    assert chunk_walls(plant) == pytest.approx([start + k * period for k in range(1, n + 1)],
+                                               abs=1e-9)
+    assert plant.stamps_ns == [k * CHUNK_NS for k in range(n + 1)]
+    stats = plant.runner.stats
+    assert stats.chunks == n and stats.overruns == 0
+    assert len(stats.lateness_s) == n and max(map(abs, stats.lateness_s)) < 1e-9
+    # one report per wall second; each window after the first holds a second of chunks
+    # (the chunk due at the window's edge may fall on either side: one chunk of slack)
+    reports = [s for _, s in plant.statuses]
+    assert len(reports) == 3
+    for status in reports[1:]:
+        achieved = float(status.values["achieved_real_time_factor"])
+        assert achieved == pytest.approx(rtf, abs=0.02 * rtf + 1e-3)
+        assert status.level == OK and status.message == "running"
+
+
+def test_real_time_factor_zero_runs_chunks_back_to_back_without_waiting():
+    plant = make_plant(real_time_factor=0.0)
+    start = plant.clock.t
+    timeouts = [plant.runner.poll() for _ in range(100)]
+    assert timeouts == [0.0] * 100
+    assert plant.runner.stats.chunks == 100 and plant.clock.t == start
+    assert not plant.runner.stats.lateness_s  # no deadline, no lateness
+
+
+def test_a_late_chunk_counts_one_overrun_and_restarts_the_schedule_without_a_burst():
+    # chunk 10 costs 50 ms of wall time: 2.5 periods at real_time_factor 1
+    plant = make_plant(cost_s=lambda k: 0.05 if k == 10 else 0.0)
+    start = plant.clock.t
+    plant.run_until(start + 0.5)
+    walls = chunk_walls(plant)
+    late_done = start + 11 * 0.02 + 0.05  # the 11th chunk was due at 0.22 s, done at 0.27 s
+    assert walls[:11] == pytest.approx([start + k * 0.02 for k in range(1, 11)] + [late_done])
+    # the next chunk right away, then one period apart: no catching up
+    assert walls[11:14] == pytest.approx([late_done, late_done + 0.02, late_done + 0.04])
+    stats = plant.runner.stats
+    assert stats.overruns == 1
+    assert sorted(stats.lateness_s)[-1] == pytest.approx(0.05)
+    plant.run_until(start + 1.0 + 1e-6)
+    status = plant.statuses[-1][1]
+    assert status.level == WARN and status.message == "1 chunk overrun(s) in the last 1.0 s"
+    assert status.values["chunk_overruns"] == "1"
+
+
+def test_changing_the_real_time_factor_restarts_the_schedule_from_now():
+    plant = make_plant(real_time_factor=1.0)
+    start = plant.clock.t
+    plant.run_until(start + 0.1 + 0.01)
+    assert plant.request(plant.runner.set_real_time_factor(4.0)) is None
+    assert plant.log.at("info")[-1] == "real_time_factor set to 4"
+    changed = plant.clock.t
+    plant.run_until(changed + 0.0225)
+    assert chunk_walls(plant)[5:] == pytest.approx([changed + 0.005 * k for k in range(1, 5)])
+
+
+def test_a_receiving_thread_steps_aside_only_while_a_chunk_is_due():
+    plant = make_plant(real_time_factor=1.0)
+    clock, runner = plant.clock, plant.runner
+    runner.yield_to_plant()  # the next chunk is 20 ms away
+    assert clock.t == 1000.0
+    clock.t = 1000.0 + 0.02 - 0.001  # within the lead time: wait, but not for ever
+    runner.yield_to_plant()
+    assert clock.t - (1000.0 + 0.019) == pytest.approx(YIELD_MAX_S, abs=YIELD_POLL_S)
+    for idle in (make_plant(real_time_factor=0.0), make_plant(lockstep=True)):
+        t = idle.clock.t
+        idle.runner.yield_to_plant()
+        assert idle.clock.t == t
+
+
+# --------------------------------------------------------------------------- lock-step
+
+
+def lockstep_run(wall_between_calls):
+    plant = make_plant(lockstep=True, steps_per_call=5, auto_brake_at_s=0.05)
+    plant.run_until(plant.clock.t + 10.0)
+    assert len(plant.states) == 1, "a lock-step plant advanced without being asked"
+    replies = []
+    for call in range(20):
+        ok, text = plant.request(plant.runner.step())
+        assert ok, text
+        replies.append(text)
+        assert len(plant.states) == 1 + 5 * (call + 1)
+        plant.run_until(plant.clock.t + wall_between_calls(call))
+        assert len(plant.states) == 1 + 5 * (call + 1)
+    return plant, replies
+
+
+def snapshot_arrays(states):
+    return [np.concatenate([s.position_m, s.speed_m_s, s.brake_force_N, s.coupler_force_N])
+            for _, s in states]
+
+
+def test_lockstep_advances_exactly_the_chunks_asked_for_and_repeats_bit_for_bit():
+    a, replies = lockstep_run(lambda call: 0.0)
+    b, _ = lockstep_run(lambda call: 0.37 * (call % 3))  # other wall times between calls
+    assert replies[0] == ("advanced 5 chunk(s) to t = 0.100 s with emergency=true "
+                          "brake_demand=0 traction=0 (inputs handled: 1)")
+    assert a.stamps_ns == b.stamps_ns == [k * CHUNK_NS for k in range(101)]
+    for x, y in zip(snapshot_arrays(a.states), snapshot_arrays(b.states)):
+        assert np.array_equal(x, y)
+    # a reset restores the initial state bit for bit, and the run after it is the same run
+    ok, text = a.request(a.runner.reset())
+    assert ok and text == "reset to the initial state (brake released, t = 0 s)"
+    assert np.array_equal(snapshot_arrays(a.states[-1:])[0], snapshot_arrays(a.states[:1])[0])
+    first = snapshot_arrays(a.states[:101])
+    for _ in range(20):
+        assert a.request(a.runner.step())[0]
+    again = snapshot_arrays(a.states[101:])
+    assert len(again) == 101 and all(np.array_equal(x, y) for x, y in zip(first, again))
+    assert [i[:3] for i in a.inputs] == [(60_000_000, "emergency", True)] * 2
+
+
+def test_pause_stops_the_plant_step_advances_it_and_resume_restarts_the_schedule():
+    plant = make_plant(real_time_factor=1.0, steps_per_call=3)
+    runner, start = plant.runner, plant.clock.t
+    plant.run_until(start + 0.09)
+    assert plant.stamps_ns[-1] == 4 * CHUNK_NS
+    ok, text = plant.request(runner.step())
+    assert not ok and "free-running" in text and len(plant.states) == 5  # refused, not queued
+    assert plant.request(runner.pause(True)) == (True, "paused at t = 0.080 s")
+    plant.run_until(plant.clock.t + 5.0)
+    assert len(plant.states) == 5
+    ok, text = plant.request(runner.step())
+    assert ok and text.startswith("advanced 3 chunk(s) to t = 0.140 s")
+    assert plant.request(runner.pause(False)) == (True, "running at t = 0.140 s")
+    resumed = plant.clock.t
+    plant.run_until(resumed + 0.05)
+    assert chunk_walls(plant)[7:] == pytest.approx([resumed + 0.02, resumed + 0.04])
+    lockstep = make_plant(lockstep=True)
+    assert lockstep.request(lockstep.runner.pause(False))[1] == \
+        "running at t = 0.000 s (lock-step mode: the plant advances only on ~/step)"
+
+
+# --------------------------------------------------------------------------- run policy
+
+
+@pytest.mark.parametrize("at_s, boundary_ns", [(0.05, 60_000_000), (0.06, 60_000_000),
+                                                (0.0, 0)])
+def test_auto_brake_is_an_input_at_the_first_chunk_boundary_at_or_after_its_time(at_s,
+                                                                                 boundary_ns):
+    plant = make_plant(real_time_factor=0.0, auto_brake_at_s=at_s)
+    plant.polls(10)
+    assert plant.inputs == [(boundary_ns, "emergency", True, None)]
+    assert plant.runner.commands == Commands(emergency=True) and plant.runner.handled == 1
+    applied = [e for _, s in plant.states for e in s.events if e.kind == "brake_applied"]
+    assert [round(e.time_s * 1e9) for e in applied] == [boundary_ns]
+    # once per run: again after a reset
+    plant.request(plant.runner.reset())
+    plant.polls(10)
+    assert plant.inputs[1:] == [(boundary_ns, "emergency", True, None)]
+
+
+def test_max_sim_time_finishes_after_exactly_its_chunks():
+    plant = make_plant(real_time_factor=0.0, max_sim_time_s=0.5)
+    plant.polls(40)
+    runner = plant.runner
+    assert runner.stats.chunks == 25 and plant.stamps_ns[-1] == 500_000_000
+    assert runner.finished.is_set() and runner.finish_reason == "max_sim_time_s reached"
+    assert "max_sim_time_s = 0.5 s reached; shutting down" in plant.log.at("info")
+    assert plant.request(runner.pause(True))[0]
+    assert plant.request(runner.step()) == \
+        (False, "max_sim_time_s reached; the node is shutting down")
+    plant.run_until(plant.clock.t + 1.5)
+    assert plant.statuses[-1][1].values["state"] == "finished"
+    assert plant.statuses[-1][1].message == "max_sim_time_s reached"
+    # in lock-step mode a step stops at the limit
+    lockstep = make_plant(lockstep=True, steps_per_call=100, max_sim_time_s=0.5)
+    ok, text = lockstep.request(lockstep.runner.step())
+    assert ok and text.startswith("advanced 25 chunk(s) to t = 0.500 s")
+
+
+def test_shutdown_after_stop_finishes_at_the_first_boundary_that_long_after_the_stop():
+    plant = make_plant(real_time_factor=0.0, chunk_s=0.1, auto_brake_at_s=0.0,
+                       shutdown_after_stop_s=2.0)
+    while not plant.runner.finished.is_set():
+        plant.runner.poll()
+        assert plant.runner.stats.chunks < 500, "the train never stopped"
+    sim = plant.runner.sim
+    assert sim.stop_time_s is not None
+    # chunk ends are multiples of 0.1 s: the first one 2 s or more after the stop
+    assert plant.stamps_ns[-1] == math.ceil(round((sim.stop_time_s + 2.0) * 1e9) / 1e8) * 10**8
+    assert plant.runner.finish_reason == "shutdown_after_stop_s reached"
+    assert "2 s after the stop; shutting down" in plant.log.at("info")
+    assert sum("train stopped" in line for line in plant.log.at("info")) == 1
+
+
+# --------------------------------------------------------------------------- inputs and jobs
+
+
+def test_inputs_are_checked_against_the_command_ranges_counted_and_logged_sparingly():
+    plant = make_plant(lockstep=True)
+    runner = plant.runner
+    for value in (0.5, math.nan, math.inf, -0.1, 1.5, 0.25):
+        runner.receive("brake_demand", value, f"msg {value}")
+    runner.receive("traction", -1.0)
+    runner.receive("traction", -1.5)
+    runner.receive("emergency", True)
+    runner.poll()
+    assert runner.commands == Commands(emergency=True, brake_demand=0.25, traction=-1.0)
+    assert runner.handled == 9 and runner.rejected == {"brake_demand": 4, "traction": 1}
+    # every input is handed on (to be recorded), accepted or not, in order
+    assert [(name, msg) for _, name, _, msg in plant.inputs][:6] == \
+        [("brake_demand", f"msg {v}") for v in (0.5, math.nan, math.inf, -0.1, 1.5, 0.25)]
+    assert plant.log.at("warning") == [
+        "/t/brake_demand: rejected nan, expected a finite number from 0 to 1; keeping the "
+        "previous value (1 rejected so far)",
+        "traction: rejected -1.5, expected a finite number from -1 to 1; keeping the previous "
+        "value (1 rejected so far)"]
+    plant.clock.t += 2.0  # the next rejection on a topic is logged two seconds later
+    runner.receive("brake_demand", 2.0)
+    runner.poll()
+    assert plant.log.at("warning")[-1].endswith("(5 rejected so far)")
+    plant.run_until(plant.clock.t + 1.0)
+    status = plant.statuses[-1][1]
+    assert (status.values["rejected_inputs"], status.values["inputs_handled"]) == ("6", "10")
+    assert (status.values["brake_demand"], status.values["traction_command"],
+            status.values["emergency_command"]) == ("0.25", "-1", "true")
+    with pytest.raises(KeyError, match="unknown input"):
+        runner.receive("sand", 1.0)
+
+
+def test_jobs_run_between_chunks_a_failing_one_does_not_stop_the_plant():
+    plant = make_plant(real_time_factor=0.0)
+    runner = plant.runner
+    later = []
+
+    def boom():
+        raise RuntimeError("boom")
+
+    def submits_another():
+        later.append(runner.submit(lambda: (True, "second")))
+        return True, "first"
+
+    failing, first = runner.submit(boom), runner.submit(submits_another)
+    runner.poll()
+    assert failing.result == (False, "RuntimeError: boom") and plant.log.at("error") == ["RuntimeError: boom"]
+    assert first.result == (True, "first")
+    # only the jobs queued before a poll run in it: a flood cannot starve the chunks
+    assert not later[0].done.is_set() and runner.stats.chunks == 1
+    runner.poll()
+    assert later[0].result == (True, "second") and runner.stats.chunks == 2
+
+
+# --------------------------------------------------------------------------- failures
+
+
+def test_a_simulator_failure_stops_advancing_is_reported_and_reset_recovers(monkeypatch):
+    plant = make_plant(real_time_factor=1.0)
+    runner = plant.runner
+    plant.run_until(plant.clock.t + 0.07)
+
+    def diverge(*args, **kwargs):
+        raise SimulationError("forced: Newton iteration did not converge")
+
+    monkeypatch.setattr(runner.sim, "advance", diverge)
+    plant.run_until(plant.clock.t + 0.02)
+    assert runner.failure == "forced: Newton iteration did not converge"
+    assert plant.log.at("error") == [
+        "simulation failed at t = 0.060 s: forced: Newton iteration did not converge; the "
+        "plant stopped advancing, call ~/reset to recover"]
+    status = plant.statuses[-1][1]  # reported at once, not at the next second
+    assert status.level == ERROR and status.message == runner.failure
+    assert status.values["state"] == "failed" and status.values["error"] == runner.failure
+    published = len(plant.states)
+    plant.run_until(plant.clock.t + 2.0)
+    assert len(plant.states) == published
+    assert plant.request(runner.pause(True))[0]
+    assert plant.request(runner.step()) == \
+        (False, f"simulation failed: {runner.failure}; call ~/reset")
+    monkeypatch.undo()
+    assert plant.request(runner.reset())[0] and runner.failure is None
+    assert plant.request(runner.step())[0] and plant.stamps_ns[-2:] == [0, CHUNK_NS]
+
+
+def test_any_simulator_exception_is_a_failure_with_its_type():
+    plant = make_plant(lockstep=True)
+    plant.runner.sim.advance = lambda *a, **k: 1 / 0
+    assert plant.request(plant.runner.step()) == \
+        (False, "simulation failed: ZeroDivisionError: division by zero; call ~/reset")
+
+
+# --------------------------------------------------------------------------- the thread
+
+
+def threaded_runner(clock, publish_state, log=None, **kwargs):
+    return PlantRunner(CostlySimulator(FakeClock()), PlantSettings(real_time_factor=0.0,
+                                                                  max_sim_time_s=0.2),
+                       publish_state=publish_state, publish_status=lambda s: None,
+                       log=log or Log(), clock=clock, **kwargs)
+
+
+def test_the_plant_thread_runs_until_finished_and_close_joins_it():
+    idle = threaded_runner(FakeClock().clock(), lambda s: None)
+    assert idle.result(idle.reset()) == (False, "the plant is not running (shutting down)")
+    stamps = []
+    runner = threaded_runner(Clock(), lambda s: stamps.append(round(s.time_s * 1e9)))
+    runner.start()
+    assert runner.finished.wait(30)
+    assert runner.result(runner.pause(True)) == (True, "paused at t = 0.200 s")
+    runner.close()
+    assert stamps == [k * CHUNK_NS for k in range(11)] and runner.exit_status == 0
+
+
+@pytest.mark.parametrize("host_ok", [True, False])
+def test_an_unexpected_error_on_the_plant_thread_ends_the_run(host_ok):
+    def publish(snap):
+        if snap.time_s > 0.03:
+            raise RuntimeError("publisher gone")
+
+    log = Log()
+    runner = threaded_runner(FakeClock().clock(), publish, log=log, host_ok=lambda: host_ok)
+    runner.run()  # returns once the error ended the loop
+    if host_ok:
+        assert log.at("fatal") == ["plant thread stopped: RuntimeError: publisher gone"]
+        assert runner.exit_status == 1 and runner.finished.is_set()
+    else:  # the host is shutting down: expected, not reported
+        assert log.lines == [] and runner.exit_status == 0
