@@ -7,6 +7,7 @@ into a line on stderr.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from ..inputs import InputError
@@ -46,7 +47,8 @@ def main(argv: list[str] | None = None) -> int:
     Returns
     -------
     int
-        Exit status: 0 success, 2 bad input, 3 simulation failure, 130 interrupted.
+        Exit status: 0 success, 2 bad input, 3 simulation failure, 130 interrupted, 141 the
+        output was closed early (as a shell reports a writer ended by SIGPIPE).
     """
     from ..simulator import SimulationError
 
@@ -66,6 +68,11 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"ltd-brake {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader went away (`ltd-brake ... | head`): nothing more to say, and nothing to
+        # flush at exit either
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 
 if __name__ == "__main__":

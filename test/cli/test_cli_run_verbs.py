@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 
 import pytest
 import yaml
@@ -56,3 +58,13 @@ def test_scripted_emergency_from_standstill_start_travels_its_stopping_distance(
                                                         abs=STANDSTILL_M_S * 0.1)
     assert out["stopping_distance_m"] > 100.0 and out["final_speed_kmh"] == pytest.approx(0, abs=0.01)
     assert out["peak_buff_kN"] < 0 < out["peak_draft_kN"] and out["peak_draft_coupler"] >= 1
+
+
+def test_output_closed_early_is_not_an_error_trace():
+    # `ltd-brake validate | head -1`: the reader is gone before the table is printed
+    proc = subprocess.Popen([sys.executable, "-m", "ltd_brake_ros.cli", "validate",
+                             "--scenarios", "7", "--jobs", "1"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 141 and err == b""
