@@ -6,16 +6,23 @@ import json
 from pathlib import Path
 
 from ..inputs import InputError
+from .options import CONVENTIONS
+
+DESCRIPTION = """\
+Analyse a recorded run (bag folder or .mcap): emergency command time, stopping distance and
+time, peak draft and buff force with coupler number and time; writes PNG plots (speed, brake
+force, peak force per coupler, coupler force map) and, with --csv, the arrays in SI units.
+"""
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Add the ``report`` verb to ``ltd-brake`` (the verb contract: :mod:`ltd_brake_ros.cli`)."""
     ap = subparsers.add_parser(
         "report", help="analyse a recorded run: distance, peak forces, plots",
-        description="Analyse a recorded run (bag folder or .mcap): emergency command time, "
-                    "stopping distance and time, peak draft and buff force with coupler number "
-                    "and time; writes PNG plots (speed, brake force, peak force per coupler, "
-                    "coupler force map) and, with --csv, the arrays in SI units.")
+        description=DESCRIPTION,
+        epilog=CONVENTIONS + "\nexamples:\n  ltd-brake report runs/demo_20250101-120000\n"
+               "  ltd-brake report run_0.mcap --csv --json\n",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("run", help="bag folder or .mcap file")
     ap.add_argument("--out", help="directory for plots and CSV (default: RUN/report, or "
                                   "<file>_report beside a .mcap file)")

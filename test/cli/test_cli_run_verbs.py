@@ -68,3 +68,14 @@ def test_output_closed_early_is_not_an_error_trace():
     proc.stdout.close()
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 141 and err == b""
+
+
+@pytest.mark.parametrize("verb", [[], ["simulate"], ["validate"], ["report"]])
+def test_help_teaches_units_and_signs(capsys, verb):
+    with pytest.raises(SystemExit) as exc:
+        main([*verb, "--help"])
+    assert exc.value.code == 0
+    text = capsys.readouterr().out
+    for words in ("km/h", "SI (m, s, N)", "coupler 1 is the coupler behind the head",
+                  "draft\n  (tension) forces are positive, buff (compression) forces negative"):
+        assert words in text
