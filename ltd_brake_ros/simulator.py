@@ -3,15 +3,19 @@
 Contract
 --------
 1. Build it from validated inputs (:class:`~ltd_brake_ros.inputs.Consist`,
-   :class:`~ltd_brake_ros.inputs.BrakeParams`, :class:`~ltd_brake_ros.inputs.CouplerLUT`) and an
-   initial speed; every vehicle starts at that speed with unloaded couplers.
+   :class:`~ltd_brake_ros.inputs.BrakeParams` naming a brake model, the parameters of a coupler
+   model such as :class:`~ltd_brake_ros.inputs.CouplerLUT`) and an initial speed; every vehicle
+   starts at that speed with unloaded couplers. The models are compiled once into
+   :attr:`Simulator.model`.
 2. :meth:`Simulator.advance` integrates one chunk of simulated time under the given
    :class:`Commands` and returns a :class:`Snapshot`. Chunks of any length give the same result
    as one long call, within the integrator tolerance (exactly the same when both are multiples
    of the step).
 3. A step whose Newton iteration does not converge raises :class:`SimulationError`; the state is
    left at the start of the failed chunk's last good step and :meth:`reset` recovers.
-4. Counters (``steps``, ``newton_iterations``, ...) report what the integration cost.
+4. Everything that changes lives in one :class:`SimulatorState`; :meth:`Simulator.reset`
+   replaces it by a copy of the initial one. :attr:`Simulator.stats` reports what the
+   integration cost.
 
 Sign conventions: vehicle 0 is the head; speeds forward positive; coupler j (numbered from 1
 behind the head) carries force draft/tension positive, buff negative; brake forces are
@@ -24,14 +28,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .physics import kernel
+from .inputs import BrakeParams, Consist, CouplerLUT, InputError, Track
 from .inputs.commands import COMMAND_RANGES
-from .inputs import BlockBrake, BrakeParams, Consist, CouplerLUT, DiscBrake, InputError, Track
-from .physics.constants import STANDSTILL_M_S
-from .physics import (ARR_BG, ARR_BGU, BRAKE_BLOCKS, BRAKE_DISC, BRAKE_NONE, KMH_PER_MS,
-                      curve_resistance_N_per_kN, sum_block_force_kN, train_braked_weight_percent)
-
-LN20 = math.log(20.0)
+from .physics import brakes as brakes_module
+from .physics import couplers, kernel
+from .physics.brakes import friction
+from .physics.brakes.base import EMERGENCY, SERVICE
+from .physics.constants import KMH_PER_MS, STANDSTILL_M_S
+from .physics.equations import (centre_offsets_m, curve_resistance_N_per_kN,
+                                train_braked_weight_percent)
+from .physics.kernel import Stats  # noqa: F401 (part of this module's interface)
 
 
 class SimulationError(RuntimeError):
@@ -128,6 +134,9 @@ class Snapshot:
         Events that happened during this chunk.
     stopped : bool
         Every vehicle is at standstill (slower than the simulator's ``standstill_m_s``).
+    extras : dict
+        Further per-vehicle quantities of the brake model (units in the keys); empty for the
+        shipped models.
     """
 
     time_s: float
@@ -139,6 +148,7 @@ class Snapshot:
     coupler_force_N: np.ndarray
     events: tuple = ()
     stopped: bool = False
+    extras: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -191,8 +201,71 @@ class CouplerPeaks:
                    float(buff[jb]), jb + 1, float(np.asarray(buff_time_s)[jb]))
 
 
+@dataclass
+class SimulatorState:
+    """Everything about a simulator that changes while it runs.
+
+    Attributes
+    ----------
+    time_s : float
+        Simulated time [s].
+    last_step_s : float
+        Last step size [s]; 0 restarts the integrator without history.
+    kinematics : KinematicState
+        Displacements, speeds, forces and running extremes (see
+        :class:`~ltd_brake_ros.physics.kernel.KinematicState`).
+    brakes : BrakeState
+        The brake model's state.
+    events : CommandEvents
+        Brake commands issued at the head that some vehicle has yet to receive.
+    stats : ndarray
+        Counters, one :data:`~ltd_brake_ros.physics.kernel.STATS_DTYPE` record.
+    brake_command : tuple of (float, int)
+        Brake level and kind last commanded.
+    emergency : bool
+        The emergency brake is commanded.
+    traction_demand : float
+        Traction or dynamic-brake demand, -1 to 1.
+    command_time_s : float or None
+        Time of the brake command the stopping distance counts from [s].
+    command_head_m : float
+        Head displacement at that command [m].
+    stop_time_s, stopping_distance_m : float or None
+        When the train stopped [s] and the head's travel since the command [m].
+    reported_out_of_range : ndarray of bool
+        Couplers whose excursion beyond their valid range has been reported.
+    failed : bool
+        A step failed; only a reset recovers.
+    """
+
+    time_s: float
+    last_step_s: float
+    kinematics: kernel.KinematicState
+    brakes: brakes_module.BrakeState
+    events: brakes_module.CommandEvents
+    stats: np.ndarray
+    brake_command: tuple = (0.0, EMERGENCY)
+    emergency: bool = False
+    traction_demand: float = 0.0
+    command_time_s: float | None = None
+    command_head_m: float = 0.0
+    stop_time_s: float | None = None
+    stopping_distance_m: float | None = None
+    reported_out_of_range: np.ndarray = None
+    failed: bool = False
+
+    def copy(self) -> "SimulatorState":
+        """An independent copy."""
+        return SimulatorState(self.time_s, self.last_step_s, self.kinematics.copy(),
+                              self.brakes.copy(), self.events.copy(), self.stats.copy(),
+                              self.brake_command, self.emergency, self.traction_demand,
+                              self.command_time_s, self.command_head_m, self.stop_time_s,
+                              self.stopping_distance_m, self.reported_out_of_range.copy(),
+                              self.failed)
+
+
 class Simulator:
-    """Longitudinal dynamics of one train under the empirical UIC air brake.
+    """Longitudinal dynamics of one train under an air-brake model.
 
     Parameters
     ----------
@@ -201,9 +274,11 @@ class Simulator:
     speed_kmh : float
         Initial speed of every vehicle [km/h].
     params : BrakeParams, optional
-        Brake-model parameters (default: Table 3 and the paper's K0).
-    lut : CouplerLUT
-        Coupler characteristic (default: the shipped buffer-hook table).
+        Brake model and its parameters (default: the empirical UIC model with Table 3 and the
+        paper's K0).
+    lut : dataclass, optional
+        Parameters of a registered coupler model, e.g. a :class:`CouplerLUT` (default: the
+        shipped buffer-hook table).
     track : Track, optional
         Track profile (default: level straight track).
     step_s : float, optional
@@ -222,6 +297,15 @@ class Simulator:
         Half-width of the standstill band [m/s]: brake and running resistance reach their full
         value at this speed and hold a stopped vehicle against any smaller force; it creeps at
         most at this speed times (force / holding force).
+
+    Attributes
+    ----------
+    model : TrainModel
+        The train compiled for the kernel: per-vehicle arrays of every part of the model
+        (read them, do not change them).
+    fext_N : ndarray
+        Additional external force on each vehicle, forward positive [N]; an input that may be
+        changed between chunks.
     """
 
     def __init__(self, consist: Consist, speed_kmh: float, params: BrakeParams | None = None,
@@ -247,70 +331,47 @@ class Simulator:
         self.newton_rtol = float(newton_rtol)
         self.standstill_m_s = float(standstill_m_s)
         self.stick_band_m_s = float(stick_band_m_s)
-        self._resist = 1.0 if resistance else 0.0
         self._brakes = bool(brakes)
+        self.model = self._compile(consist, params, lut, self.track, resistance, self._brakes)
+        self._brake_model = brakes_module.model_of(params.pneumatic)
+        self._options = kernel.Options(self.max_newton_iter, self.newton_rtol,
+                                       self.standstill_m_s, self.stick_band_m_s)
+        self.fext_N = np.zeros(self.n)
+        n, nc = self.n, max(self.n - 1, 1)
+        self._initial = SimulatorState(
+            0.0, 0.0, kernel.KinematicState.initial(n, self.speed_kmh / KMH_PER_MS),
+            self._brake_model.initial_state(self.model.brakes), brakes_module.CommandEvents.empty(),
+            kernel.new_stats(), reported_out_of_range=np.zeros(nc, bool))
+        self.reset()
+
+    @staticmethod
+    def _compile(consist: Consist, params: BrakeParams, coupler, track: Track, resistance: bool,
+                 brakes_on: bool) -> kernel.TrainModel:
         vs = consist.vehicles
         n = len(vs)
-        self.n = n
-        self.mass_kg = np.array([v.mass_kg for v in vs])
-        self.length_m = np.array([v.length_m for v in vs])
-        self._meff = self.mass_kg * np.array([v.inertia_factor for v in vs])
-        self._axles = np.array([float(v.axles) for v in vs])
-        self._kind = np.zeros(n, np.int64)
-        self._blocks = np.ones(n)
-        self._arr = np.zeros(n, np.int64)
-        self._mu_disc = np.zeros(n)
-        #: Maximum block force of each vehicle, 1000 * sum(F_dyn) (Eq. 4 inverted) [N].
-        self.max_block_force_N = np.zeros(n)
-        for i, v in enumerate(vs):
-            b = v.brake
-            if isinstance(b, BlockBrake):
-                self._kind[i] = BRAKE_BLOCKS
-                self._blocks[i] = b.blocks
-                self._arr[i] = ARR_BGU if b.arrangement == "Bgu" else ARR_BG
-                s = sum_block_force_kN(v.braked_weight_t, float(b.blocks), params.k0,
-                                       int(self._arr[i]))
-                if not math.isfinite(s):
-                    raise InputError(consist.source, f"vehicles[{i}].brake",
-                                     "Eq. 4 could not be inverted for this braked weight")
-                self.max_block_force_N[i] = 1000.0 * s
-            elif isinstance(b, DiscBrake):
-                self._kind[i] = BRAKE_DISC
-                self._mu_disc[i] = b.mu_eff if b.mu_eff is not None else params.mu_eff
-                k = b.k if b.k is not None else params.k_loco
-                self.max_block_force_N[i] = 1000.0 * v.braked_weight_t * 9.81 / k
-            else:
-                self._kind[i] = BRAKE_NONE
-        # vehicle centres behind the head's front [m]; Eq. 6 delay from the head's centre
-        front = np.concatenate(([0.0], np.cumsum(self.length_m)[:-1]))
-        self._centre_offset_m = front + 0.5 * self.length_m
-        distance = self._centre_offset_m - self._centre_offset_m[0]
-        self.brake_delay_s = params.t_app_s + (0.0 * distance if params.simultaneous
-                                               else distance / params.v_air_m_s)
-        self._fmax = self.max_block_force_N if self._brakes else np.zeros(n)
-        # brake position: G fills (and releases) slower; service applications scale alike
-        in_g = np.array([v.brake_position == "G" for v in vs])
-        fill = np.where(in_g, params.t_fill_G_s, params.t_fill_s)
-        self._tau_emergency = fill / LN20
-        self._tau_service = params.t_service_fill_s * fill / params.t_fill_s / LN20
-        self._tau_release = np.where(in_g, params.t_release_G_s, params.t_release_s) / LN20
+        mass = np.array([v.mass_kg for v in vs])
+        length = np.array([v.length_m for v in vs])
+        train = kernel.TrainArrays(mass, mass * np.array([v.inertia_factor for v in vs]),
+                                   np.array([float(v.axles) for v in vs]),
+                                   centre_offsets_m(length), 1.0 if resistance else 0.0)
+        try:
+            fr = friction.compile(consist, params.friction)
+        except brakes_module.CompileError as exc:
+            raise InputError(consist.source, exc.field, exc.reason) from None
+        brake_model = brakes_module.model_of(params.pneumatic)
+        ba = brake_model.compile(consist, params.pneumatic,
+                                 fr.force_max_N if brakes_on else np.zeros(n))
         # traction and dynamic brake of powered vehicles (zeros elsewhere)
         tr = [v.traction for v in vs]
-        self._tr = {name: np.array([getattr(t, name) if t else 0.0 for t in tr])
-                    for name in ("max_force_N", "max_power_W", "brake_max_force_N",
-                                 "brake_max_power_W", "rate_limit_N_s", "time_constant_s",
-                                 "fade_speed_m_s")}
-        self._tr["time_constant_s"][self._tr["time_constant_s"] <= 0] = 1.0
-        self._tr["fade_speed_m_s"][self._tr["fade_speed_m_s"] <= 0] = 1.0
-        tk = self.track
-        self._tk_s = np.asarray(tk.chainage_m, float)
-        self._tk_grad = np.asarray(tk.gradient_permille, float)
-        self._tk_rc = np.array([curve_resistance_N_per_kN(r) for r in tk.radius_m])
-        xs = np.asarray(lut.deflection_m, float)
-        self._xs, self._fl, self._fu = xs, np.asarray(lut.loading_N, float), np.asarray(
-            lut.unloading_N, float)
-        self.fext_N = np.zeros(n)
-        self.reset()
+        tr_arrays = kernel.TractionArrays(*(
+            np.array([getattr(t, name) if t else 0.0 for t in tr])
+            for name in kernel.TractionArrays._fields))
+        tr_arrays.time_constant_s[tr_arrays.time_constant_s <= 0] = 1.0
+        tr_arrays.fade_speed_m_s[tr_arrays.fade_speed_m_s <= 0] = 1.0
+        tk = kernel.TrackArrays(float(track.start_chainage_m), np.array(
+            [track.chainage_m, track.gradient_permille,
+             [curve_resistance_N_per_kN(r) for r in track.radius_m]], float))
+        return kernel.TrainModel(train, fr, ba, couplers.compile(coupler), tr_arrays, tk)
 
     # ------------------------------------------------------------------ state
 
@@ -321,89 +382,114 @@ class Simulator:
         -------
         Snapshot
         """
-        n = self.n
-        v0 = self.speed_kmh / KMH_PER_MS
-        self.time_s = 0.0
-        self._hp = 0.0
-        self._x = np.zeros(n)
-        self._v = np.full(n, v0)
-        self._xp = np.zeros(n)
-        self._vp = np.full(n, v0)
-        self._stuck = self._v == 0.0
-        self._fb = np.zeros(n)
-        self._lvl = np.zeros(n)
-        self._lkind = np.zeros(n, np.int64)
-        self._nxt = np.zeros(n, np.int64)
-        self._ev_t = np.zeros(8)
-        self._ev_lvl = np.zeros(8)
-        self._ev_kind = np.zeros(8, np.int64)
-        self._n_ev = 0
-        self._level = (0.0, 0)  # brake level and kind last commanded
-        self._ftr = np.zeros(n)
-        self._traction_cmd = 0.0
-        self._fc = np.zeros(max(n - 1, 1))
-        self._fbrake = np.zeros(n)
-        nc = max(n - 1, 1)
-        self._peak_draft = np.zeros(nc)
-        self._t_draft = np.zeros(nc)
-        self._peak_buff = np.zeros(nc)
-        self._t_buff = np.zeros(nc)
-        self._lut_out = np.zeros(nc)
-        self._t_lut_out = np.full(nc, -1.0)
-        self._stats = np.zeros(6, np.int64)
-        self._emergency = False
-        self.command_time_s: float | None = None
-        self._x_cmd = 0.0
-        self.stop_time_s: float | None = None
-        self.stopping_distance_m: float | None = None
-        self._reported_lut = np.zeros(nc, bool)
-        self._failed = False
+        self._state = self._initial.copy()
         return self.snapshot()
+
+    @property
+    def state(self) -> SimulatorState:
+        """A copy of the current state (changing it changes nothing)."""
+        return self._state.copy()
+
+    @property
+    def n(self) -> int:
+        """Number of vehicles."""
+        return self.model.train.mass_kg.shape[0]
+
+    @property
+    def mass_kg(self) -> np.ndarray:
+        """Weight on rails of each vehicle [kg]."""
+        return self.model.train.mass_kg
+
+    @property
+    def length_m(self) -> np.ndarray:
+        """Length over buffers of each vehicle [m]."""
+        return np.array([v.length_m for v in self.consist.vehicles])
+
+    @property
+    def max_block_force_N(self) -> np.ndarray:
+        """Full block force of each vehicle, 1000 * sum(F_dyn) (Eq. 4 inverted) [N]."""
+        return self.model.friction.force_max_N
+
+    @property
+    def brake_delay_s(self) -> np.ndarray:
+        """When a brake command issued at the head reaches each vehicle, after it [s]."""
+        return self.model.brakes.delay_s
+
+    @property
+    def time_s(self) -> float:
+        """Simulated time [s]."""
+        return self._state.time_s
+
+    @property
+    def command_time_s(self) -> float | None:
+        """Time of the brake command the stopping distance counts from [s] (None: none)."""
+        return self._state.command_time_s
+
+    @property
+    def stop_time_s(self) -> float | None:
+        """When the train stopped after a brake command [s] (None: not yet)."""
+        return self._state.stop_time_s
+
+    @property
+    def stopping_distance_m(self) -> float | None:
+        """Head's travel from the brake command to the stop [m] (None: not stopped yet)."""
+        return self._state.stopping_distance_m
+
+    @property
+    def distance_travelled_m(self) -> float:
+        """Head's displacement since time 0 [m]."""
+        return float(self._state.kinematics.x_m[0])
+
+    @property
+    def stats(self) -> Stats:
+        """What the integration cost since the last reset."""
+        return kernel.read_stats(self._state.stats)
 
     @property
     def steps(self) -> int:
         """Integration steps taken since the last reset."""
-        return int(self._stats[0])
+        return int(self._state.stats[0]["steps"])
 
     @property
     def newton_iterations(self) -> int:
         """Newton iterations (linear solves) since the last reset."""
-        return int(self._stats[1])
+        return int(self._state.stats[0]["newton_iterations"])
 
     @property
     def max_newton_iterations(self) -> int:
         """Most Newton iterations any single step needed."""
-        return int(self._stats[2])
+        return int(self._state.stats[0]["max_newton_iterations"])
 
     @property
     def stopped(self) -> bool:
         """True when every vehicle is slower than ``standstill_m_s``."""
-        return bool(np.all(np.abs(self._v) <= self.standstill_m_s))
+        return bool(np.all(np.abs(self._state.kinematics.v_m_s) <= self.standstill_m_s))
 
     @property
     def peak_draft_N(self) -> np.ndarray:
         """Largest draft (tension) force per coupler so far [N] (0 if never in draft)."""
-        return self._peak_draft[: self.n - 1].copy()
+        return self._state.kinematics.peak_draft_N[: self.n - 1].copy()
 
     @property
     def peak_buff_N(self) -> np.ndarray:
         """Largest buff (compression) force per coupler so far, negative [N]."""
-        return self._peak_buff[: self.n - 1].copy()
+        return self._state.kinematics.peak_buff_N[: self.n - 1].copy()
 
     @property
     def peak_draft_time_s(self) -> np.ndarray:
         """Time of each coupler's peak draft force [s]."""
-        return self._t_draft[: self.n - 1].copy()
+        return self._state.kinematics.peak_draft_time_s[: self.n - 1].copy()
 
     @property
     def peak_buff_time_s(self) -> np.ndarray:
         """Time of each coupler's peak buff force [s]."""
-        return self._t_buff[: self.n - 1].copy()
+        return self._state.kinematics.peak_buff_time_s[: self.n - 1].copy()
 
     @property
     def lut_excursion_m(self) -> np.ndarray:
-        """Largest deflection beyond the coupler table per coupler [m] (0 if never)."""
-        return self._lut_out[: self.n - 1].copy()
+        """Largest deflection beyond the coupler model's valid range per coupler [m] (0 if
+        never)."""
+        return self._state.kinematics.beyond_range_m[: self.n - 1].copy()
 
     def coupler_peaks(self) -> CouplerPeaks:
         """Largest draft and buff force since the last reset, where and when.
@@ -433,50 +519,44 @@ class Simulator:
         Snapshot
         """
         n = self.n
-        return Snapshot(self.time_s, self.track.start_chainage_m + self._x - self._centre_offset_m,
-                        self._v.copy(), self._fbrake.copy() if self._brakes else np.zeros(n),
-                        self._ftr.copy(), self._fb.copy(), self._fc[: n - 1].copy(),
-                        tuple(events), self.stopped)
+        st = self._state
+        k = st.kinematics
+        return Snapshot(st.time_s,
+                        self.track.start_chainage_m + k.x_m - self.model.train.centre_offset_m,
+                        k.v_m_s.copy(), k.brake_force_N.copy() if self._brakes else np.zeros(n),
+                        k.traction_force_N.copy(), st.brakes.force_N.copy(),
+                        k.coupler_force_N[: n - 1].copy(), tuple(events), self.stopped,
+                        self._brake_model.snapshot_extras(self.model.brakes, st.brakes))
 
     # ------------------------------------------------------------------ integration
 
     def _add_event(self, level: float, kind: int) -> None:
+        st = self._state
         # drop events every vehicle has already received
-        done = int(self._nxt.min())
-        if done:
-            m = self._n_ev - done
-            self._ev_t[:m] = self._ev_t[done:self._n_ev].copy()
-            self._ev_lvl[:m] = self._ev_lvl[done:self._n_ev].copy()
-            self._ev_kind[:m] = self._ev_kind[done:self._n_ev].copy()
-            self._n_ev = m
-            self._nxt -= done
-        if self._n_ev == self._ev_t.size:
-            self._ev_t = np.concatenate((self._ev_t, np.zeros(self._ev_t.size)))
-            self._ev_lvl = np.concatenate((self._ev_lvl, np.zeros(self._ev_lvl.size)))
-            self._ev_kind = np.concatenate((self._ev_kind, np.zeros(self._ev_kind.size, np.int64)))
-        self._ev_t[self._n_ev] = self.time_s
-        self._ev_lvl[self._n_ev] = level
-        self._ev_kind[self._n_ev] = kind
-        self._n_ev += 1
+        received = int(st.brakes.next_event.min())
+        st.events = st.events.appended(st.time_s, level, kind, received)
+        if received:
+            st.brakes.next_event[:] -= received
 
     def _apply_commands(self, commands: Commands, events: list) -> None:
-        if (commands.emergency or commands.brake_demand > 0.0) and self.command_time_s is None:
+        st = self._state
+        if (commands.emergency or commands.brake_demand > 0.0) and st.command_time_s is None:
             # the stopping distance counts from the brake command that leads to the stop
-            self.command_time_s = self.time_s
-            self._x_cmd = float(self._x[0])
-        if commands.emergency and not self._emergency:
-            self._emergency = True
-            events.append(Event(self.time_s, "brake_applied"))
-        elif not commands.emergency and self._emergency:
-            self._emergency = False
-            events.append(Event(self.time_s, "brake_released"))
-        level = (1.0, 0) if self._emergency else (float(commands.brake_demand), 1)
-        if level[0] == 0.0 and self.stop_time_s is None:
-            self.command_time_s = None  # released before standstill: a new stop counts anew
-        if level != self._level:
-            self._level = level
+            st.command_time_s = st.time_s
+            st.command_head_m = float(st.kinematics.x_m[0])
+        if commands.emergency and not st.emergency:
+            st.emergency = True
+            events.append(Event(st.time_s, "brake_applied"))
+        elif not commands.emergency and st.emergency:
+            st.emergency = False
+            events.append(Event(st.time_s, "brake_released"))
+        level = (1.0, EMERGENCY) if st.emergency else (float(commands.brake_demand), SERVICE)
+        if level[0] == 0.0 and st.stop_time_s is None:
+            st.command_time_s = None  # released before standstill: a new stop counts anew
+        if level != st.brake_command:
+            st.brake_command = level
             self._add_event(*level)
-        self._traction_cmd = float(commands.traction)
+        st.traction_demand = float(commands.traction)
 
     def advance(self, duration_s: float, commands: Commands | None = None) -> Snapshot:
         """Integrate one chunk of simulated time.
@@ -500,7 +580,8 @@ class Simulator:
         """
         if not (math.isfinite(duration_s) and duration_s > 0.0):
             raise ValueError(f"duration_s must be a positive finite number, got {duration_s}")
-        if self._failed:
+        st = self._state
+        if st.failed:
             raise SimulationError("the simulator stopped after a failed step; call reset()")
         events: list[Event] = []
         if commands is not None:
@@ -508,48 +589,36 @@ class Simulator:
         nsteps = max(1, math.ceil(duration_s / self.step_s - 1e-9))
         h = duration_s / nsteps
         remaining = nsteps
-        tr = self._tr
+        inputs = kernel.Inputs(st.traction_demand, self.fext_N)
         while remaining:
-            watch = self.stop_time_s is None and self.command_time_s is not None
+            watch = st.stop_time_s is None and st.command_time_s is not None
             code, t, hp, done = kernel.run_steps(
-                remaining, h, self.time_s, self._hp, self._x, self._v, self._xp, self._vp,
-                self._stuck, self._meff, self.mass_kg, self._axles, self._kind,
-                self._blocks, self._arr, self._mu_disc, self.fext_N, self._resist,
-                self._xs, self._fl, self._fu, self.lut.v_th_m_s,
-                self._fb, self._lvl, self._lkind, self._nxt, self.brake_delay_s, self._fmax,
-                self._tau_emergency, self._tau_service, self._tau_release,
-                self._ev_t, self._ev_lvl, self._ev_kind, self._n_ev,
-                self._traction_cmd, self._ftr, tr["max_force_N"], tr["max_power_W"],
-                tr["brake_max_force_N"], tr["brake_max_power_W"], tr["rate_limit_N_s"],
-                tr["time_constant_s"], tr["fade_speed_m_s"],
-                self._centre_offset_m, self.track.start_chainage_m, self._tk_s, self._tk_grad,
-                self._tk_rc,
-                self._fc, self._fbrake, self._peak_draft, self._t_draft, self._peak_buff,
-                self._t_buff, self._lut_out, self._t_lut_out, self._stats,
-                self.max_newton_iter, self.newton_rtol, watch, self.standstill_m_s,
-                self.stick_band_m_s)
-            self.time_s, self._hp = t, hp
+                remaining, h, st.time_s, st.last_step_s, self.model, inputs, st.kinematics,
+                st.brakes, st.events, st.stats[0], self._options, watch)
+            st.time_s, st.last_step_s = t, hp
             remaining -= done
             if code == kernel.NEWTON_FAILED:
-                self._failed = True
+                st.failed = True
                 raise SimulationError(
                     f"Newton iteration did not converge within {self.max_newton_iter} "
                     f"iterations in the step starting at t = {t:.4f} s (step {h:.4g} s)")
             if code == kernel.STOPPED:
-                self.stop_time_s = self.time_s
-                self.stopping_distance_m = float(self._x[0]) - self._x_cmd
-                events.append(Event(self.time_s, "stopped", {
-                    "stopping_distance_m": self.stopping_distance_m,
-                    "stop_time_s": self.time_s - self.command_time_s}))
-        self._report_lut_exits(events)
+                st.stop_time_s = st.time_s
+                st.stopping_distance_m = float(st.kinematics.x_m[0]) - st.command_head_m
+                events.append(Event(st.time_s, "stopped", {
+                    "stopping_distance_m": st.stopping_distance_m,
+                    "stop_time_s": st.time_s - st.command_time_s}))
+        self._report_out_of_range(events)
         return self.snapshot(tuple(events))
 
-    def _report_lut_exits(self, events: list) -> None:
+    def _report_out_of_range(self, events: list) -> None:
         nc = self.n - 1
-        new = (self._t_lut_out[:nc] >= 0.0) & ~self._reported_lut[:nc]
+        k = self._state.kinematics
+        reported = self._state.reported_out_of_range
+        new = (k.out_of_range_time_s[:nc] >= 0.0) & ~reported[:nc]
         for j in np.flatnonzero(new):
-            self._reported_lut[j] = True
-            d = float(self._x[j] - self._x[j + 1])
-            events.append(Event(float(self._t_lut_out[j]), "coupler_out_of_lut", {
+            reported[j] = True
+            d = float(k.x_m[j] - k.x_m[j + 1])
+            events.append(Event(float(k.out_of_range_time_s[j]), "coupler_out_of_lut", {
                 "coupler": int(j) + 1, "deflection_mm": d * 1e3,
-                "beyond_table_mm": float(self._lut_out[j]) * 1e3}))
+                "beyond_table_mm": float(k.beyond_range_m[j]) * 1e3}))

@@ -5,15 +5,18 @@ units. Bad input raises :class:`InputError` naming the file, the field path and 
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import sys
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, ClassVar, Mapping
 
 import yaml
 
+from ..physics.brakes import BrakeParams  # noqa: F401 (part of this module's interface)
+from ..physics.couplers.lut_hysteresis import Params as CouplerLUT
 from .commands import COMMAND_RANGES
 
 #: Largest consist accepted [vehicles]; far above any real train, it guards memory and time.
@@ -229,68 +232,30 @@ def _kind(value: Any) -> str:
 # --------------------------------------------------------------------------- brake parameters
 
 
-@dataclass(frozen=True)
-class BrakeParams:
-    """Parameters of the empirical UIC air-brake model (Eq. 4-10, Table 3).
+def _params_from_fields(params_type, f: "_Fields"):
+    """Build a model's ``Params`` from the fields it declares (ranges and file names there)."""
+    from ..physics.parameters import specs
 
-    Attributes
-    ----------
-    t_app_s : float
-        Delay between the command and the brake-cylinder pressure rise [s].
-    v_air_m_s : float
-        Propagation speed of the brake-pipe pressure drop (Eq. 6) [m/s].
-    t_fill_s : float
-        Brake-cylinder filling time; time constant tau = t_fill / ln 20 (Eq. 7) [s].
-    k0 : float
-        Scale of the reconstructed UIC 544-1 k factor of cast-iron blocks [-].
-    k_loco : float
-        Constant k factor of Eq. 4 for disc-braked locomotives [-].
-    mu_eff : float
-        Effective disc friction coefficient of Eq. 10 [-].
-    t_release_s : float
-        Release time in P: block force decays with tau = t_release / ln 20 (not in the
-        paper) [s].
-    t_fill_G_s : float
-        Brake-cylinder filling time of vehicles in G (UIC 540: 18-30 s) [s]. Not validated.
-    t_release_G_s : float
-        Release time of vehicles in G (UIC 540: 45-60 s) [s]. Not validated.
-    t_service_fill_s : float
-        Filling time of a service application in P; G vehicles scale it by
-        t_fill_G / t_fill. A default for experiments, not validated [s].
-    simultaneous : bool
-        The command reaches every vehicle at once (t_del = 0 in Eq. 6), as with
-        electronically controlled pneumatic brakes or radio distributed power; the paper's
-        model is for a brake pipe vented at the head only. Not validated.
-    source : str
-        File the values came from.
-    """
-
-    t_app_s: float = 1.0
-    v_air_m_s: float = 200.0
-    t_fill_s: float = 5.0
-    k0: float = 2.72
-    k_loco: float = 3.54
-    mu_eff: float = 0.264
-    t_release_s: float = 15.0
-    t_fill_G_s: float = 25.0
-    t_release_G_s: float = 50.0
-    t_service_fill_s: float = 7.0
-    simultaneous: bool = False
-    source: str = "built-in defaults"
-
-    @property
-    def tau_apply_s(self) -> float:
-        """Time constant of the exponential rise, Eq. 7 [s]."""
-        return self.t_fill_s / math.log(20.0)
-
-    @property
-    def tau_release_s(self) -> float:
-        """Time constant of the exponential release [s]."""
-        return self.t_release_s / math.log(20.0)
+    values = {}
+    for name, spec in specs(params_type).items():
+        key = spec.key or name
+        default = params_type.__dataclass_fields__[name].default
+        if isinstance(default, bool):
+            values[name] = f.boolean(key, default)
+            continue
+        if default is dataclasses.MISSING:
+            default = None
+        elif spec.scale != 1.0:
+            default = default / spec.scale
+        values[name] = spec.scale * f.number(key, default, lo=spec.lo, hi=spec.hi,
+                                             lo_open=spec.lo_open)
+    return params_type(**values)
 
 
-_BRAKE_FIELDS = {"t_app_s", "v_air_m_s", "t_fill_s", "k0", "k_loco", "mu_eff", "t_release_s",
-                 "t_fill_G_s", "t_release_G_s", "t_service_fill_s", "simultaneous"}
+def _file_keys(params_type) -> set[str]:
+    from ..physics.parameters import specs
+
+    return {spec.key or name for name, spec in specs(params_type).items()}
 
 
 def brake_params_from_mapping(data: Any, source: str) -> BrakeParams:
@@ -299,7 +264,8 @@ def brake_params_from_mapping(data: Any, source: str) -> BrakeParams:
     Parameters
     ----------
     data : mapping
-        Field name to value; missing fields take the :class:`BrakeParams` defaults.
+        ``model`` (a registered brake model, default ``uic_empirical``) and the fields of that
+        model's and the friction law's ``Params``; missing fields take their defaults.
     source : str
         Where the values came from, for error messages.
 
@@ -307,24 +273,15 @@ def brake_params_from_mapping(data: Any, source: str) -> BrakeParams:
     -------
     BrakeParams
     """
+    from ..physics import brakes
+
     f = _Fields({} if data is None else data, source)
-    f.reject_unknown(_BRAKE_FIELDS | {"name", "description"})
-    d = BrakeParams()
-    return BrakeParams(
-        t_app_s=f.number("t_app_s", d.t_app_s, lo=0.0, hi=60.0),
-        v_air_m_s=f.number("v_air_m_s", d.v_air_m_s, lo=0.0, lo_open=True, hi=400.0),
-        t_fill_s=f.number("t_fill_s", d.t_fill_s, lo=0.0, lo_open=True, hi=300.0),
-        k0=f.number("k0", d.k0, lo=0.0, lo_open=True, hi=100.0),
-        k_loco=f.number("k_loco", d.k_loco, lo=0.0, lo_open=True, hi=100.0),
-        mu_eff=f.number("mu_eff", d.mu_eff, lo=0.0, lo_open=True, hi=1.0),
-        t_release_s=f.number("t_release_s", d.t_release_s, lo=0.0, lo_open=True, hi=600.0),
-        t_fill_G_s=f.number("t_fill_G_s", d.t_fill_G_s, lo=0.0, lo_open=True, hi=300.0),
-        t_release_G_s=f.number("t_release_G_s", d.t_release_G_s, lo=0.0, lo_open=True, hi=600.0),
-        t_service_fill_s=f.number("t_service_fill_s", d.t_service_fill_s, lo=0.0, lo_open=True,
-                                  hi=300.0),
-        simultaneous=f.boolean("simultaneous", d.simultaneous),
-        source=str(source),
-    )
+    name = f.string("model", brakes.DEFAULT_MODEL, choices=tuple(brakes.MODELS))
+    model = brakes.MODELS[name]
+    f.reject_unknown(_file_keys(model.Params) | _file_keys(brakes.friction.Params)
+                     | {"model", "name", "description"})
+    return BrakeParams(_params_from_fields(model.Params, f),
+                       _params_from_fields(brakes.friction.Params, f), str(source))
 
 
 def load_brake_params(path: str | os.PathLike | None = None) -> BrakeParams:
@@ -344,29 +301,6 @@ def load_brake_params(path: str | os.PathLike | None = None) -> BrakeParams:
 
 
 # --------------------------------------------------------------------------- coupler LUT
-
-
-@dataclass(frozen=True)
-class CouplerLUT:
-    """Loading/unloading impedance of one coupling interface (Eq. 3).
-
-    Attributes
-    ----------
-    deflection_m : tuple of float
-        Strictly increasing deflections, draft positive [m].
-    loading_N, unloading_N : tuple of float
-        Forces of the loading and unloading curves at those deflections, draft positive [N].
-    v_th_m_s : float
-        Eq. 3 threshold speed between the curves [m/s].
-    source : str
-        File the table came from.
-    """
-
-    deflection_m: tuple[float, ...]
-    loading_N: tuple[float, ...]
-    unloading_N: tuple[float, ...]
-    v_th_m_s: float = 1e-4
-    source: str = ""
 
 
 def load_coupler_lut(path: str | os.PathLike | None = None,
@@ -440,6 +374,8 @@ class BlockBrake:
     arrangement: str
     braked_weight_t: float
     braked_weight_G_t: float | None = None
+    #: The ``type`` of a vehicle's brake in a consist file.
+    type: ClassVar[str] = "blocks"
 
 
 @dataclass(frozen=True)
@@ -462,6 +398,8 @@ class DiscBrake:
     k: float | None = None
     mu_eff: float | None = None
     braked_weight_G_t: float | None = None
+    #: The ``type`` of a vehicle's brake in a consist file.
+    type: ClassVar[str] = "disc"
 
 
 @dataclass(frozen=True)

@@ -1,98 +1,297 @@
 """Compiled integration kernel: fixed-step variable-coefficient BDF2 for the train ODE.
 
 Each step eliminates the positions (x_{n+1} = xhat + beta*h*u), leaving a nonlinear system in the
-new speeds u whose Jacobian is tridiagonal and symmetric positive definite. It is solved by
-Newton's method with these safeguards:
+new speeds u whose Jacobian is tridiagonal and symmetric positive definite (every coupler model
+is non-decreasing in deflection and rate, see :mod:`.couplers`). It is solved by Newton's method
+with these safeguards:
 
 * brake and running resistance oppose the motion with their full value outside a narrow
   standstill band |v| <= v_stick and grow linearly inside it, so that they hold a stopped
   vehicle against any smaller force (it creeps at most at v_stick times the force ratio);
-* a Newton update that would carry a coupler's deflection speed across the whole Eq. 3 band
-  |rate| <= v_th is shortened so that it lands inside the band, and one that would carry a
-  vehicle's speed across its standstill band puts that vehicle at rest (plain Newton
-  2-cycles on both bands);
+* a Newton update that would carry a coupler's deflection speed across the whole steep band of
+  its model (Eq. 3's |rate| <= v_th) is shortened so that it lands inside the band, and one
+  that would carry a vehicle's speed across its standstill band puts that vehicle at rest
+  (plain Newton 2-cycles on both bands);
 * after a few iterations without convergence (rare: several vehicles and couplers crossing
   bands together), each update is shortened by an exact line search on the step's convex
   potential, which converges from anywhere;
 * a step is accepted only when every residual is below the tolerance; otherwise the kernel
   returns a failure code and the caller raises.
 
-The brake block force of each vehicle relaxes exponentially towards a piecewise-constant target
-(level of the last command it has received x its maximum force), integrated exactly, which is
-Eq. 5 for an emergency application.
+The brake model advances the block forces exactly over each step (:mod:`.brakes`); the friction
+law turns them into retarding forces.
+
+Everything is passed in named bundles (typing.NamedTuple of arrays and scalars, which numba
+compiles like structs): :class:`TrainModel` (compiled once), :class:`Inputs` (per chunk),
+:class:`KinematicState` plus the brake model's state and the command events (mutable, updated
+in place), a :data:`STATS_DTYPE` record of counters and :class:`Options`.
 """
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
-from .equations import (BRAKE_BLOCKS, BRAKE_DISC, KMH_PER_MS, block_force_factor, coupler_force,
-                      jit, karwatzki_speed_factor, lut_segment, resistance_coefficients)
+from . import brakes, couplers
+from .brakes import friction
+from .constants import KMH_PER_MS
+from .equations import jit, jit_inline, lut_segment, resistance_coefficients
 
 #: Kernel return codes.
 OK, NEWTON_FAILED, STOPPED = 0, 1, 2
 
 
-@jit
-def _relax(force, target, dt, tau_apply, tau_release):
-    tau = tau_apply if target > force else tau_release
-    return target + (force - target) * math.exp(-dt / tau)
+class TrainArrays(NamedTuple):
+    """Per-vehicle data of the train, head first (built once).
 
-
-@jit
-def advance_brakes(t0, t1, fb, lvl, lkind, nxt, delay, fmax, tau_emergency, tau_service,
-                   tau_release, ev_t, ev_lvl, ev_kind, n_ev):
-    """Advance every vehicle's block force exactly from t0 to t1 (in place).
-
-    Each vehicle relaxes exponentially towards ``level * fmax``, where the level is that of
-    the last command event it has received (event time + its delay). An increase follows the
-    application time constant of the event's kind (0 emergency, 1 service), a decrease the
-    release time constant. For an emergency application from rest this is Eq. 5.
-
-    Parameters
+    Attributes
     ----------
-    t0, t1 : float
-        Step start and end [s].
-    fb : ndarray
-        Block force of each vehicle at t0, replaced by the value at t1 [N].
-    lvl, lkind : ndarray
-        Level (0-1) and kind of the command each vehicle currently follows.
-    nxt : ndarray of int
-        Index of the next command event each vehicle has not yet received.
-    delay : ndarray
-        t_app + t_del of each vehicle [s] (Eq. 5-6).
-    fmax : ndarray
-        Maximum block force of each vehicle, 1000 * sum(F_dyn) [N].
-    tau_emergency, tau_service, tau_release : ndarray
-        Time constants of each vehicle [s] (Eq. 7 for the emergency one).
-    ev_t, ev_lvl, ev_kind : ndarray
-        Command events: time [s], level and kind.
-    n_ev : int
-        Number of valid events.
+    mass_kg : ndarray
+        Weight on rails M [kg].
+    meff_kg : ndarray
+        rho * M, with the rotating-mass factor of Eq. 1 [kg].
+    axles : ndarray
+        Axle count.
+    centre_offset_m : ndarray
+        Distance of each vehicle's centre behind the head's front [m].
+    resist : float
+        1 with running resistance (Eq. 2), 0 without.
     """
-    for i in range(fb.shape[0]):
-        t = t0
-        f = fb[i]
-        while nxt[i] < n_ev and ev_t[nxt[i]] + delay[i] <= t1:
-            te = max(ev_t[nxt[i]] + delay[i], t)
-            ta = tau_emergency[i] if lkind[i] == 0 else tau_service[i]
-            f = _relax(f, lvl[i] * fmax[i], te - t, ta, tau_release[i])
-            t = te
-            lvl[i] = ev_lvl[nxt[i]]
-            lkind[i] = ev_kind[nxt[i]]
-            nxt[i] += 1
-        ta = tau_emergency[i] if lkind[i] == 0 else tau_service[i]
-        fb[i] = _relax(f, lvl[i] * fmax[i], t1 - t, ta, tau_release[i])
+
+    mass_kg: np.ndarray
+    meff_kg: np.ndarray
+    axles: np.ndarray
+    centre_offset_m: np.ndarray
+    resist: float
+
+
+class TractionArrays(NamedTuple):
+    """Traction and dynamic-brake limits of each vehicle (zeros for unpowered ones).
+
+    Attributes
+    ----------
+    max_force_N, max_power_W : ndarray
+        Traction limits [N], [W].
+    brake_max_force_N, brake_max_power_W : ndarray
+        Dynamic-brake limits [N], [W].
+    rate_limit_N_s : ndarray
+        Largest change of the applied force per second [N/s].
+    time_constant_s : ndarray
+        Lag between demand and applied force [s].
+    fade_speed_m_s : ndarray
+        Below this speed the dynamic brake fades linearly to zero [m/s].
+    """
+
+    max_force_N: np.ndarray
+    max_power_W: np.ndarray
+    brake_max_force_N: np.ndarray
+    brake_max_power_W: np.ndarray
+    rate_limit_N_s: np.ndarray
+    time_constant_s: np.ndarray
+    fade_speed_m_s: np.ndarray
+
+
+class TrackArrays(NamedTuple):
+    """Track profile: sections from given chainages.
+
+    Attributes
+    ----------
+    start_chainage_m : float
+        Chainage of the head's front at t = 0 [m].
+    sections : ndarray, shape (3, sections)
+        Rows :data:`SECTION_START` (start of each section [m]), :data:`GRADIENT` (uphill
+        positive [per mille]) and :data:`CURVE` (curve resistance [N/kN]).
+    """
+
+    start_chainage_m: float
+    sections: np.ndarray
+
+
+#: Rows of ``TrackArrays.sections``.
+SECTION_START, GRADIENT, CURVE = 0, 1, 2
+
+
+class TrainModel(NamedTuple):
+    """Everything compiled once for a train: the bundles of each part of the model."""
+
+    train: TrainArrays
+    friction: friction.FrictionArrays
+    brakes: brakes.BrakeArrays
+    couplers: couplers.CouplerArrays
+    traction: TractionArrays
+    track: TrackArrays
+
+
+class Inputs(NamedTuple):
+    """Inputs held over a chunk.
+
+    Attributes
+    ----------
+    traction_demand : float
+        -1 (full dynamic brake) to 1 (full traction).
+    external_force_N : ndarray
+        Additional external force on each vehicle, forward positive [N].
+    """
+
+    traction_demand: float
+    external_force_N: np.ndarray
+
+
+class KinematicState(NamedTuple):
+    """The integrator's mutable state (arrays updated in place).
+
+    Attributes
+    ----------
+    x_m, v_m_s : ndarray
+        Displacement [m] and speed [m/s] of each vehicle now.
+    x_prev_m, v_prev_m_s : ndarray
+        The same one step back (BDF2 history).
+    stuck : ndarray of bool
+        Vehicles inside the standstill band |v| <= v_stick.
+    traction_force_N : ndarray
+        Applied traction (positive) or dynamic-brake force [N].
+    coupler_force_N : ndarray
+        Force of each coupler at the end of the last step, draft positive [N].
+    brake_force_N : ndarray
+        Retarding force of each vehicle's brake at the end of the last step [N].
+    peak_draft_N, peak_draft_time_s, peak_buff_N, peak_buff_time_s : ndarray
+        Running extreme coupler forces [N] and their times [s].
+    beyond_range_m : ndarray
+        Largest excursion beyond the coupler model's valid range, per coupler [m].
+    out_of_range_time_s : ndarray
+        First time each coupler was out of its range [s] (-1: never).
+    """
+
+    x_m: np.ndarray
+    v_m_s: np.ndarray
+    x_prev_m: np.ndarray
+    v_prev_m_s: np.ndarray
+    stuck: np.ndarray
+    traction_force_N: np.ndarray
+    coupler_force_N: np.ndarray
+    brake_force_N: np.ndarray
+    peak_draft_N: np.ndarray
+    peak_draft_time_s: np.ndarray
+    peak_buff_N: np.ndarray
+    peak_buff_time_s: np.ndarray
+    beyond_range_m: np.ndarray
+    out_of_range_time_s: np.ndarray
+
+    @classmethod
+    def initial(cls, n: int, speed_m_s: float) -> "KinematicState":
+        """Every vehicle at ``speed_m_s`` [m/s], couplers unloaded, nothing recorded yet."""
+        nc = max(n - 1, 1)
+        v = np.full(n, speed_m_s)
+        return cls(np.zeros(n), v, np.zeros(n), np.full(n, speed_m_s), v == 0.0, np.zeros(n),
+                   np.zeros(nc), np.zeros(n), np.zeros(nc), np.zeros(nc), np.zeros(nc),
+                   np.zeros(nc), np.zeros(nc), np.full(nc, -1.0))
+
+    def copy(self) -> "KinematicState":
+        """An independent copy."""
+        return KinematicState(*(a.copy() for a in self))
+
+
+class Options(NamedTuple):
+    """Numerical settings.
+
+    Attributes
+    ----------
+    max_newton_iter : int
+        Newton iterations allowed per step.
+    newton_rtol : float
+        Residual tolerance relative to each vehicle's weight.
+    standstill_m_s : float
+        Speed below which a vehicle counts as standing (for the stop watch) [m/s].
+    stick_band_m_s : float
+        Half-width of the standstill band of brake and running resistance [m/s].
+    """
+
+    max_newton_iter: int
+    newton_rtol: float
+    standstill_m_s: float
+    stick_band_m_s: float
+
+
+class Stats(NamedTuple):
+    """What the integration cost, counted since the last reset.
+
+    Attributes
+    ----------
+    steps : int
+        Integration steps.
+    newton_iterations : int
+        Newton iterations (linear solves).
+    max_newton_iterations : int
+        Most iterations any single step needed.
+    band_cutbacks : int
+        Newton updates shortened to land inside a coupler's steep band.
+    standstill_projections : int
+        Vehicles put at rest instead of jumping across their standstill band.
+    line_searches : int
+        Newton updates shortened by the exact line search.
+    """
+
+    steps: int = 0
+    newton_iterations: int = 0
+    max_newton_iterations: int = 0
+    band_cutbacks: int = 0
+    standstill_projections: int = 0
+    line_searches: int = 0
+
+
+#: Record the kernel counts into (one field per :class:`Stats` field).
+STATS_DTYPE = np.dtype([(name, np.int64) for name in Stats._fields])
+
+
+def new_stats() -> np.ndarray:
+    """A zeroed counter record (an array of one :data:`STATS_DTYPE` element)."""
+    return np.zeros(1, STATS_DTYPE)
+
+
+def read_stats(record: np.ndarray) -> Stats:
+    """The counters of a record as :class:`Stats`."""
+    return Stats(*(int(x) for x in record[0].tolist()))
+
+
+class _Step(NamedTuple):
+    """What one implicit step's residual needs, fixed within the step."""
+
+    xhat: np.ndarray
+    vhat: np.ndarray
+    bh: float
+    fx: np.ndarray
+    meff: np.ndarray
+    tol: np.ndarray
+    res_a: np.ndarray
+    fa_scale: np.ndarray
+    rcurve: np.ndarray
+    resist: float
+    v_stick: float
+
+
+class _Work(NamedTuple):
+    """Outputs of a residual evaluation: residual, Jacobian pieces, forces."""
+
+    g: np.ndarray
+    diag: np.ndarray
+    cj: np.ndarray
+    fc: np.ndarray
+    fair: np.ndarray
+
+
+def _work(n: int) -> _Work:
+    nc = max(n - 1, 1)
+    return _Work(np.empty(n), np.empty(n), np.empty(nc), np.empty(nc), np.empty(n))
 
 
 @jit
-def advance_traction(h, cmd, v, ftr, fmax, pmax, db_fmax, db_pmax, rate, tau, fade):
+def advance_traction(h, cmd, v, ftr, tr):
     """Advance the applied traction/dynamic-brake force of powered vehicles (in place).
 
     The demanded force is ``cmd * min(F_max, P/|v|)`` (traction, forward) or, for cmd < 0,
-    ``cmd * min(F_db, P_db/|v|)`` against the motion, fading linearly to zero below ``fade``.
-    The applied force follows it with a first-order lag and a rate limit.
+    ``cmd * min(F_db, P_db/|v|)`` against the motion, fading linearly to zero below the fade
+    speed. The applied force follows it with a first-order lag and a rate limit.
 
     Parameters
     ----------
@@ -104,11 +303,10 @@ def advance_traction(h, cmd, v, ftr, fmax, pmax, db_fmax, db_pmax, rate, tau, fa
         Speeds [m/s].
     ftr : ndarray
         Applied force, forward positive [N]; updated.
-    fmax, pmax, db_fmax, db_pmax : ndarray
-        Traction and dynamic-brake limits [N], [W] (0 for unpowered vehicles).
-    rate, tau, fade : ndarray
-        Rate limit [N/s], lag [s], dynamic-brake fade speed [m/s].
+    tr : TractionArrays
     """
+    fmax, pmax = tr.max_force_N, tr.max_power_W
+    db_fmax, db_pmax, fade = tr.brake_max_force_N, tr.brake_max_power_W, tr.fade_speed_m_s
     for i in range(ftr.shape[0]):
         if fmax[i] <= 0.0 and db_fmax[i] <= 0.0:
             continue
@@ -121,43 +319,39 @@ def advance_traction(h, cmd, v, ftr, fmax, pmax, db_fmax, db_pmax, rate, tau, fa
             if spd < fade[i]:
                 avail *= spd / fade[i]
             target = cmd * avail * (1.0 if v[i] >= 0.0 else -1.0)
-        lagged = target + (ftr[i] - target) * math.exp(-h / tau[i])
-        dmax = rate[i] * h
+        lagged = target + (ftr[i] - target) * math.exp(-h / tr.time_constant_s[i])
+        dmax = tr.rate_limit_N_s[i] * h
         change = min(max(lagged - ftr[i], -dmax), dmax)
         ftr[i] += change
 
 
 @jit
-def track_forces(x, offset, start, mass, tk_s, tk_grad, tk_rc, fgrade, rcurve):
+def track_forces(x, train, track, fgrade, rcurve):
     """Gradient force and curve resistance of each vehicle at its own chainage (in place).
 
     Parameters
     ----------
     x : ndarray
         Displacements [m].
-    offset : ndarray
-        Distance of each vehicle's centre behind the head's front [m].
-    start : float
-        Chainage of the head's front at t = 0 [m].
-    mass : ndarray
-        [kg].
-    tk_s, tk_grad, tk_rc : ndarray
-        Section starts [m], gradients [per mille, uphill positive], curve resistance [N/kN].
+    train : TrainArrays
+    track : TrackArrays
     fgrade : ndarray
         Out: gravity component along the track, forward positive [N].
     rcurve : ndarray
         Out: curve resistance magnitude [N].
     """
+    sections, start, offset = track.sections, track.start_chainage_m, train.centre_offset_m
+    mass = train.mass_kg
     for i in range(x.shape[0]):
         # before the first section start, the first section applies
-        k = max(lut_segment(tk_s, start + x[i] - offset[i]), 0)
+        k = max(lut_segment(sections, start + x[i] - offset[i]), 0)
         weight_kN = mass[i] * 9.81 / 1000.0
-        fgrade[i] = -weight_kN * tk_grad[k]
-        rcurve[i] = weight_kN * tk_rc[k]
+        fgrade[i] = -weight_kN * sections[GRADIENT, k]
+        rcurve[i] = weight_kN * sections[CURVE, k]
 
 
-@jit
-def _retarding(i, speed, res_a, kind, fa_scale, rcurve, resist):
+@jit_inline
+def _retarding(i, speed, res_a, rcurve, resist, kind, fa_scale):
     """Brake force, running + curve resistance (magnitudes, N) and d(total)/d(speed).
 
     ``res_a`` holds the Eq. 2 coefficients per vehicle; ``fa_scale`` the brake force per unit
@@ -166,10 +360,8 @@ def _retarding(i, speed, res_a, kind, fa_scale, rcurve, resist):
     v_kmh = KMH_PER_MS * speed
     fr = (res_a[i, 0] + (res_a[i, 1] + res_a[i, 2] * v_kmh) * v_kmh + rcurve[i]) * resist
     dfr = (res_a[i, 1] + 2.0 * res_a[i, 2] * v_kmh) * KMH_PER_MS * resist
-    if kind[i] == BRAKE_BLOCKS:
-        f, df = karwatzki_speed_factor(speed)
-        return f * fa_scale[i], fr, df * fa_scale[i] + dfr
-    return fa_scale[i], fr, dfr
+    fa, dfa = friction.retarding_force(kind[i], speed, fa_scale[i])
+    return fa, fr, dfa + dfr
 
 
 #: Newton iterations with the cheap safeguards before the line search takes over.
@@ -177,33 +369,29 @@ FAST_ITERATIONS = 4
 
 
 @jit
-def _slope(step, u, du, ut, gt, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale, resist,
-           rcurve, xs, f_load, f_unload, v_th, v_stick, dgt, cjt, fct, fat):
+def _slope(step, u, du, ut, s, cp, fr_arrays, trial):
     """Directional derivative g(u + step*du) . du of the step's potential."""
     for i in range(u.shape[0]):
         ut[i] = u[i] + step * du[i]
-    _residual(ut, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale, resist, rcurve, xs,
-              f_load, f_unload, v_th, v_stick, gt, dgt, cjt, fct, fat)
+    _residual(ut, s, cp, fr_arrays, trial)
+    g = trial.g
     acc = 0.0
     for i in range(u.shape[0]):
-        acc += gt[i] * du[i]
+        acc += g[i] * du[i]
     return acc
 
 
 @jit
-def _line_search(u, du, ut, gt, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale, resist,
-                 rcurve, xs, f_load, f_unload, v_th, v_stick, dgt, cjt, fct, fat):
+def _line_search(u, du, ut, s, cp, fr_arrays, trial):
     """Step length minimising the step's convex potential along du (root of its slope).
 
     Regula falsi (Illinois) on the slope, which is monotone along the line; a 1e-3 bracket is
     plenty, the next Newton iteration corrects the rest.
     """
-    fhi = _slope(1.0, u, du, ut, gt, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale,
-                 resist, rcurve, xs, f_load, f_unload, v_th, v_stick, dgt, cjt, fct, fat)
+    fhi = _slope(1.0, u, du, ut, s, cp, fr_arrays, trial)
     if fhi <= 0.0:
         return 1.0
-    flo = _slope(0.0, u, du, ut, gt, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale,
-                 resist, rcurve, xs, f_load, f_unload, v_th, v_stick, dgt, cjt, fct, fat)
+    flo = _slope(0.0, u, du, ut, s, cp, fr_arrays, trial)
     lo, hi = 0.0, 1.0
     side = 0
     for _ in range(30):
@@ -212,8 +400,7 @@ def _line_search(u, du, ut, gt, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_s
         mid = (lo * fhi - hi * flo) / (fhi - flo)
         if not (lo < mid < hi):
             mid = 0.5 * (lo + hi)
-        fmid = _slope(mid, u, du, ut, gt, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale,
-                      resist, rcurve, xs, f_load, f_unload, v_th, v_stick, dgt, cjt, fct, fat)
+        fmid = _slope(mid, u, du, ut, s, cp, fr_arrays, trial)
         if fmid == 0.0:
             return mid
         if fmid > 0.0:
@@ -230,20 +417,25 @@ def _line_search(u, du, ut, gt, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_s
 
 
 @jit
-def _residual(u, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale, resist, rcurve, xs,
-              f_load, f_unload, v_th, v_stick, g, diag, cj, fc, fair):
-    """Residual g(u) of the implicit step and the pieces of its Jacobian (in place).
+def _residual(u, s, cp, fr_arrays, w):
+    """Residual g(u) of the implicit step and the pieces of its Jacobian (into ``w``).
 
     g_i = rho_i M_i (u_i - vhat_i) / (beta h) - (coupler, external and retarding forces on i).
-    ``diag`` receives the vehicle terms of the Jacobian's diagonal and ``cj`` each coupler's
-    d(force)/d(rate); returns True when every |g_i| is within the tolerance.
+    ``w.diag`` receives the vehicle terms of the Jacobian's diagonal and ``w.cj`` each
+    coupler's d(force)/d(rate); returns True when every |g_i| is within the tolerance.
     """
+    # bundle fields bound once: the loops below then touch plain arrays only
+    xhat, vhat, bh, fx, meff, tol = s.xhat, s.vhat, s.bh, s.fx, s.meff, s.tol
+    res_a, fa_scale, rcurve, resist, v_stick = s.res_a, s.fa_scale, s.rcurve, s.resist, s.v_stick
+    kind = fr_arrays.kind
+    model, table, coef = cp.model, cp.table, cp.coef
+    g, diag, cj, fc, fair = w.g, w.diag, w.cj, w.fc, w.fair
     n = u.shape[0]
     nc = n - 1
     for j in range(nc):
         rate = u[j] - u[j + 1]
         d = xhat[j] - xhat[j + 1] + bh * rate
-        f, kd, kr, _seg, _band = coupler_force(d, rate, xs, f_load, f_unload, v_th)
+        f, kd, kr = couplers.force(model, table, coef, d, rate)
         fc[j] = f
         cj[j] = bh * kd + kr
     converged = True
@@ -254,7 +446,7 @@ def _residual(u, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale, resist, r
         if i > 0:
             g0 -= fc[i - 1]
         spd = abs(u[i])
-        fa, fr, dr = _retarding(i, spd, res_a, kind, fa_scale, rcurve, resist)
+        fa, fr, dr = _retarding(i, spd, res_a, rcurve, resist, kind, fa_scale)
         total = fa + fr
         if spd > v_stick:
             sg = 1.0 if u[i] > 0.0 else -1.0
@@ -306,17 +498,9 @@ def _solve_tridiagonal(dvec, cj, g, off, dwork, du):
 
 
 @jit
-def run_steps(nsteps, h, t, hp,
-              x, v, xp, vp, stuck,
-              meff, mass, axles, kind, blocks, arrangement, mu_disc, fext, resist,
-              xs, f_load, f_unload, v_th,
-              fb, lvl, lkind, nxt, delay, fmax, tau_emergency, tau_service, tau_release,
-              ev_t, ev_lvl, ev_kind, n_ev,
-              tr_cmd, ftr, tr_fmax, tr_pmax, db_fmax, db_pmax, tr_rate, tr_tau, tr_fade,
-              offset, start, tk_s, tk_grad, tk_rc,
-              fc, fbrake, peak_draft, t_draft, peak_buff, t_buff, lut_out, t_lut_out,
-              stats, max_iter, rtol, watch_stop, v_stop, v_stick):
-    """Advance the train ``nsteps`` steps of ``h`` seconds (all arrays updated in place).
+def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats, options,
+              watch_stop):
+    """Advance the train ``nsteps`` steps of ``h`` seconds (state updated in place).
 
     Parameters
     ----------
@@ -327,46 +511,22 @@ def run_steps(nsteps, h, t, hp,
         Time at the start [s].
     hp : float
         Previous step [s]; 0 starts with a backward-Euler step (no history).
-    x, v, xp, vp : ndarray
-        Displacements [m] and speeds [m/s] now and one step back.
-    stuck : ndarray of bool
-        Out: vehicles inside the standstill band |v| <= v_stick.
-    meff, mass, axles : ndarray
-        rho*M [kg], M [kg], axle count.
-    kind, blocks, arrangement, mu_disc : ndarray
-        Brake description per vehicle.
-    fext : ndarray
-        Additional external force, forward positive [N].
-    resist : float
-        1 with running resistance, 0 without.
-    xs, f_load, f_unload, v_th
-        Coupler LUT [m], [N], [N] and Eq. 3 threshold [m/s].
-    fb, lvl, lkind, nxt, delay, fmax, tau_emergency, tau_service, tau_release, ev_t, ev_lvl,
-    ev_kind, n_ev
-        Brake state and command events, see :func:`advance_brakes`.
-    tr_cmd, ftr, tr_fmax, tr_pmax, db_fmax, db_pmax, tr_rate, tr_tau, tr_fade
-        Traction demand and state, see :func:`advance_traction`.
-    offset, start, tk_s, tk_grad, tk_rc
-        Geometry and track profile, see :func:`track_forces`.
-    fc, fbrake : ndarray
-        Out: coupler forces [N] and brake (retarding) forces [N] at the end.
-    peak_draft, t_draft, peak_buff, t_buff : ndarray
-        Running extreme coupler forces [N] and their times [s].
-    lut_out, t_lut_out : ndarray
-        Largest excursion beyond the LUT per coupler [m] and the first time out (-1 never).
-    stats : ndarray of int
-        [steps, Newton iterations, most iterations in one step, coupler-band cut-backs,
-        standstill-band projections, line searches].
-    max_iter : int
-        Newton iterations allowed per step.
-    rtol : float
-        Residual tolerance relative to each vehicle's weight.
+    model : TrainModel
+        The compiled train.
+    inputs : Inputs
+        Traction demand and external forces over the chunk.
+    state : KinematicState
+        Updated in place.
+    brake_state : BrakeState
+        The brake model's state, updated in place.
+    events : CommandEvents
+        Brake commands issued at the head.
+    stats : STATS_DTYPE record
+        Counters, incremented.
+    options : Options
     watch_stop : bool
-        Return ``STOPPED`` right after the first step that leaves every vehicle at standstill.
-    v_stop : float
-        Speed below which a vehicle counts as standing for ``watch_stop`` [m/s].
-    v_stick : float
-        Half-width of the standstill band of brake and running resistance [m/s].
+        Return ``STOPPED`` right after the first step that leaves every vehicle slower than
+        ``options.standstill_m_s``.
 
     Returns
     -------
@@ -379,95 +539,100 @@ def run_steps(nsteps, h, t, hp,
     done : int
         Steps completed.
     """
+    # bundle fields bound once: the loops below then touch plain arrays only
+    train = model.train
+    fr_arrays = model.friction
+    cp = model.couplers
+    band = cp.band_m_s
+    cp_model, cp_table, cp_coef = cp.model, cp.table, cp.coef
+    mass = train.mass_kg
+    x, v, xp, vp, stuck = state.x_m, state.v_m_s, state.x_prev_m, state.v_prev_m_s, state.stuck
+    ftr, fbrake, fc = state.traction_force_N, state.brake_force_N, state.coupler_force_N
+    peak_draft, t_draft = state.peak_draft_N, state.peak_draft_time_s
+    peak_buff, t_buff = state.peak_buff_N, state.peak_buff_time_s
+    lut_out, t_lut_out = state.beyond_range_m, state.out_of_range_time_s
+    fext = inputs.external_force_N
+    fb = brake_state.force_N
+    kind, blocks, arrangement, mu_disc = (fr_arrays.kind, fr_arrays.blocks, fr_arrays.arrangement,
+                                          fr_arrays.mu_disc)
+    v_stick = options.stick_band_m_s
+    v_stop = options.standstill_m_s
     n = x.shape[0]
     nc = n - 1
     u = np.empty(n)
-    g = np.empty(n)
-    diag = np.empty(n)
     off = np.empty(max(nc, 1))
-    cj = np.empty(max(nc, 1))
     du = np.empty(n)
     xhat = np.empty(n)
     vhat = np.empty(n)
-    fair = np.empty(n)
     stuck0 = np.empty(n, np.bool_)
     dtmp = np.empty(n)
     fa_scale = np.empty(n)
     tol = np.empty(n)
     res_a = np.empty((n, 3))
     for i in range(n):
-        tol[i] = rtol * mass[i] * 9.81
-        a0, a1, a2 = resistance_coefficients(mass[i], axles[i])
+        tol[i] = options.newton_rtol * mass[i] * 9.81
+        a0, a1, a2 = resistance_coefficients(mass[i], train.axles[i])
         res_a[i, 0] = a0
         res_a[i, 1] = a1
         res_a[i, 2] = a2
+    g, diag, cj, fair = np.empty(n), np.empty(n), np.empty(max(nc, 1)), np.empty(n)
+    w = _Work(g, diag, cj, fc, fair)
     ut = np.empty(n)
-    gt = np.empty(n)
-    dgt = np.empty(n)
-    cjt = np.empty(max(nc, 1))
-    fct = np.empty(max(nc, 1))
-    fat = np.empty(n)
+    trial = _Work(np.empty(n), np.empty(n), np.empty(max(nc, 1)), np.empty(max(nc, 1)),
+                  np.empty(n))
     fx = np.empty(n)
     fgrade = np.empty(n)
     rcurve = np.empty(n)
-    xlo = xs[0]
-    xhi = xs[xs.shape[0] - 1]
+    xlo = cp.valid_lo_m
+    xhi = cp.valid_hi_m
     for _step in range(nsteps):
         t1 = t + h
-        advance_brakes(t, t1, fb, lvl, lkind, nxt, delay, fmax, tau_emergency, tau_service,
-                       tau_release, ev_t, ev_lvl, ev_kind, n_ev)
+        brakes.advance(model.brakes, brake_state, events, t, t1)
         # traction and track forces vary slowly: taken at the start of the step
-        advance_traction(h, tr_cmd, v, ftr, tr_fmax, tr_pmax, db_fmax, db_pmax, tr_rate, tr_tau,
-                         tr_fade)
-        track_forces(x, offset, start, mass, tk_s, tk_grad, tk_rc, fgrade, rcurve)
+        advance_traction(h, inputs.traction_demand, v, ftr, model.traction)
+        track_forces(x, train, model.track, fgrade, rcurve)
         for i in range(n):
             fx[i] = fext[i] + ftr[i] + fgrade[i]
-            if kind[i] == BRAKE_BLOCKS:
-                # Karwatzki's block-force factor is fixed within the step (Eq. 9)
-                fa_scale[i] = fb[i] * block_force_factor(fb[i] / (1000.0 * blocks[i]),
-                                                         arrangement[i])
-            elif kind[i] == BRAKE_DISC:
-                fa_scale[i] = mu_disc[i] * fb[i]
-            else:
-                fa_scale[i] = 0.0
+            fa_scale[i] = friction.force_scale(kind[i], blocks[i], arrangement[i], mu_disc[i],
+                                               fb[i])
         if hp > 0.0:
-            w = h / hp
-            c1 = (1.0 + w) ** 2 / (1.0 + 2.0 * w)
-            c2 = w * w / (1.0 + 2.0 * w)
-            beta = (1.0 + w) / (1.0 + 2.0 * w)
+            w_ratio = h / hp
+            c1 = (1.0 + w_ratio) ** 2 / (1.0 + 2.0 * w_ratio)
+            c2 = w_ratio * w_ratio / (1.0 + 2.0 * w_ratio)
+            beta = (1.0 + w_ratio) / (1.0 + 2.0 * w_ratio)
         else:
-            w, c1, c2, beta = 0.0, 1.0, 0.0, 1.0
+            w_ratio, c1, c2, beta = 0.0, 1.0, 0.0, 1.0
         bh = beta * h
         for i in range(n):
             stuck0[i] = stuck[i]
             xhat[i] = c1 * x[i] - c2 * xp[i]
             vhat[i] = c1 * v[i] - c2 * vp[i]
-            u[i] = v[i] + w * (v[i] - vp[i])
+            u[i] = v[i] + w_ratio * (v[i] - vp[i])
             if u[i] * v[i] <= 0.0:
                 u[i] = v[i]  # never extrapolate through standstill
+        s = _Step(xhat, vhat, bh, fx, train.meff_kg, tol, res_a, fa_scale, rcurve, train.resist,
+                  v_stick)
         it = 0
         while True:
-            converged = _residual(u, xhat, vhat, bh, fx, meff, tol, res_a, kind, fa_scale,
-                                  resist, rcurve, xs, f_load, f_unload, v_th, v_stick, g, diag,
-                                  cj, fc, fair)
+            converged = _residual(u, s, cp, fr_arrays, w)
             if converged:
                 break
-            if it >= max_iter or not _all_finite(g):
+            if it >= options.max_newton_iter or not _all_finite(g):
                 # a NaN or infinite force cannot be iterated away: fail at once
-                stats[1] += it
+                stats.newton_iterations += it
                 return NEWTON_FAILED, t, hp, _step
             it += 1
             _solve_tridiagonal(diag, cj, g, off, dtmp, du)
-            if it <= FAST_ITERATIONS:
-                # a coupler whose deflection speed would jump across its whole Eq. 3 band most
-                # likely ends inside it: solve again with that coupler on the band's line
+            if it <= FAST_ITERATIONS and band > 0.0:
+                # a coupler whose deflection speed would jump across its whole steep band
+                # most likely ends inside it: solve again with that coupler on the band's line
                 again = False
                 for j in range(nc):
                     r0 = u[j] - u[j + 1]
                     r1 = r0 + du[j] - du[j + 1]
-                    if r0 * r1 < 0.0 and abs(r0) > v_th and abs(r1) > v_th:
+                    if r0 * r1 < 0.0 and abs(r0) > band and abs(r1) > band:
                         d = xhat[j] - xhat[j + 1] + bh * r0
-                        fm, kd, kr, _seg, _band = coupler_force(d, 0.0, xs, f_load, f_unload, v_th)
+                        fm, kd, kr = couplers.force(cp_model, cp_table, cp_coef, d, 0.0)
                         shift = fm + kr * r0 - fc[j]  # band line at r0 minus actual force
                         g[j] += shift
                         g[j + 1] -= shift
@@ -477,39 +642,38 @@ def run_steps(nsteps, h, t, hp,
                     _solve_tridiagonal(diag, cj, g, off, dtmp, du)
             if it <= FAST_ITERATIONS:
                 # cheap safeguards, enough for almost every step: do not let a coupler jump
-                # across the whole hysteresis band, nor a vehicle across its standstill band
+                # across its whole steep band, nor a vehicle across its standstill band
                 alpha = 1.0
-                for j in range(nc):
-                    r0 = u[j] - u[j + 1]
-                    r1 = r0 + du[j] - du[j + 1]
-                    if r0 * r1 < 0.0 and abs(r0) > v_th and abs(r1) > v_th:
-                        a = r0 / (r0 - r1)
-                        if a < alpha:
-                            alpha = a
+                if band > 0.0:
+                    for j in range(nc):
+                        r0 = u[j] - u[j + 1]
+                        r1 = r0 + du[j] - du[j + 1]
+                        if r0 * r1 < 0.0 and abs(r0) > band and abs(r1) > band:
+                            a = r0 / (r0 - r1)
+                            if a < alpha:
+                                alpha = a
                 if alpha < 1.0:
-                    stats[3] += 1
+                    stats.band_cutbacks += 1
                 for i in range(n):
                     u1 = u[i] + alpha * du[i]
                     if u1 * u[i] < 0.0 and abs(u[i]) > v_stick and abs(u1) > v_stick:
                         u1 = 0.0
-                        stats[4] += 1
+                        stats.standstill_projections += 1
                     u[i] = u1
             else:
                 # globally convergent fallback: g is the gradient of a convex potential and du
                 # a descent direction, so minimise along du exactly (the directional
                 # derivative is monotone along the line: find its root by bisection)
-                stats[5] += 1
-                alpha = _line_search(u, du, ut, gt, xhat, vhat, bh, fx, meff, tol, res_a, kind,
-                                     fa_scale, resist, rcurve, xs, f_load, f_unload, v_th,
-                                     v_stick, dgt, cjt, fct, fat)
+                stats.line_searches += 1
+                alpha = _line_search(u, du, ut, s, cp, fr_arrays, trial)
                 for i in range(n):
                     u[i] += alpha * du[i]
         for i in range(n):
             stuck[i] = abs(u[i]) <= v_stick
-        stats[0] += 1
-        stats[1] += it
-        if it > stats[2]:
-            stats[2] = it
+        stats.steps += 1
+        stats.newton_iterations += it
+        if it > stats.max_newton_iterations:
+            stats.max_newton_iterations = it
         for i in range(n):
             xp[i] = x[i]
             vp[i] = v[i]

@@ -14,7 +14,6 @@ comparisons stop there.
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 
@@ -22,9 +21,11 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.sparse import csc_matrix
 
-from ..inputs import BlockBrake, DiscBrake
-from ..physics import (ARR_BG, ARR_BGU, BRAKE_BLOCKS, BRAKE_DISC, BRAKE_NONE, block_mu,
-                      coupler_force, jit, resistance_N, rise_fraction)
+from ..physics import couplers
+from ..physics.brakes import uic_empirical
+from ..physics.brakes.friction import BRAKE_BLOCKS, BRAKE_DISC, block_mu
+from ..physics.brakes.uic_empirical import rise_fraction
+from ..physics.equations import jit, resistance_N
 
 #: Default half-width of the regularised sign(v) of the retarding forces [m/s].
 V_EPS_M_S = 1e-6
@@ -61,15 +62,15 @@ def _retarding(t, i, v, mass, axles, kind, blocks, arrangement, mu_disc, fmax, d
 
 @jit
 def _rhs(t, y, out, meff, mass, axles, kind, blocks, arrangement, mu_disc, fext, fmax, delay,
-         tau, resist, xs, f_load, f_unload, v_th, v_eps):
+         tau, resist, cp_model, cp_table, cp_coef, v_eps):
     """dy/dt of y = [x, v] (written to ``out``)."""
     n = meff.shape[0]
     for i in range(n):
         out[i] = y[n + i]
         out[n + i] = fext[i]
     for j in range(n - 1):
-        f, _kd, _kr, _seg, _band = coupler_force(y[j] - y[j + 1], y[n + j] - y[n + j + 1], xs,
-                                                 f_load, f_unload, v_th)
+        f, _kd, _kr = couplers.force(cp_model, cp_table, cp_coef, y[j] - y[j + 1],
+                                     y[n + j] - y[n + j + 1])
         out[n + j] -= f
         out[n + j + 1] += f
     for i in range(n):
@@ -80,14 +81,14 @@ def _rhs(t, y, out, meff, mass, axles, kind, blocks, arrangement, mu_disc, fext,
 
 @jit
 def _jac_data(t, y, data, meff, mass, axles, kind, blocks, arrangement, mu_disc, fmax, delay,
-              tau, resist, xs, f_load, f_unload, v_th, v_eps):
+              tau, resist, cp_model, cp_table, cp_coef, v_eps):
     """Non-zeros of d(dy/dt)/dy in the column order of :func:`_jac_pattern`."""
     n = meff.shape[0]
     kd = np.zeros(n + 1)  # kd[j + 1]: stiffness of coupler j; kd[0] = kd[n] = 0 (train ends)
     kr = np.zeros(n + 1)
     for j in range(n - 1):
-        _f, a, b, _seg, _band = coupler_force(y[j] - y[j + 1], y[n + j] - y[n + j + 1], xs,
-                                              f_load, f_unload, v_th)
+        _f, a, b = couplers.force(cp_model, cp_table, cp_coef, y[j] - y[j + 1],
+                                  y[n + j] - y[n + j + 1])
         kd[j + 1] = a
         kr[j + 1] = b
     k = 0
@@ -116,13 +117,12 @@ def _jac_data(t, y, data, meff, mass, axles, kind, blocks, arrangement, mu_disc,
 
 
 @jit
-def _coupler_forces(y, n, xs, f_load, f_unload, v_th, out):
+def _coupler_forces(y, n, cp_model, cp_table, cp_coef, out):
     """Coupler forces (draft positive) of the states in the columns of ``y`` [N]."""
     for k in range(y.shape[1]):
         for j in range(n - 1):
-            f, _kd, _kr, _seg, _band = coupler_force(y[j, k] - y[j + 1, k],
-                                                     y[n + j, k] - y[n + j + 1, k], xs, f_load,
-                                                     f_unload, v_th)
+            f, _kd, _kr = couplers.force(cp_model, cp_table, cp_coef, y[j, k] - y[j + 1, k],
+                                         y[n + j, k] - y[n + j + 1, k])
             out[k, j] = f
 
 
@@ -144,9 +144,9 @@ def _jac_pattern(n: int) -> tuple[np.ndarray, np.ndarray]:
 class ReferenceModel:
     """Arrays of the model, read off a constructed simulator so that the data are identical.
 
-    Vehicle data (effective mass, brake kind, blocks, disc friction) are derived again from the
-    consist and the brake parameters; the maximum block forces, brake delays and coupler table
-    are the simulator's own.
+    Every per-vehicle array (masses, friction, maximum block forces, brake delays and time
+    constants) and the coupler model are the simulator's compiled ones; the brake force is the
+    closed form of Eq. 5, so the simulator must run the empirical UIC brake model.
 
     Parameters
     ----------
@@ -161,51 +161,39 @@ class ReferenceModel:
     Raises
     ------
     ValueError
-        The simulator runs on a track with gradients or curves (not modelled here).
+        The simulator runs on a track with gradients or curves, or another brake model than
+        the empirical UIC one (not modelled here).
     """
 
     def __init__(self, sim, *, resistance: bool = True, v_eps_m_s: float | None = None):
         track = getattr(sim, "track", None)
         if track is not None and (any(track.gradient_permille) or any(track.radius_m)):
             raise ValueError("the reference integrates level straight track only")
-        vs = sim.consist.vehicles
-        n = len(vs)
-        self.n = n
+        model = sim.model
+        if model.brakes.model != uic_empirical.ID:
+            raise ValueError("the reference integrates the empirical UIC brake model (Eq. 5) "
+                             "only")
+        self.n = sim.n
         self.v0_m_s = sim.speed_kmh / 3.6
-        self.mass = np.array([v.mass_kg for v in vs], float)
-        self.meff = self.mass * np.array([v.inertia_factor for v in vs], float)
-        self.axles = np.array([float(v.axles) for v in vs])
-        self.kind = np.full(n, BRAKE_NONE, np.int64)
-        self.blocks = np.ones(n)
-        self.arrangement = np.full(n, ARR_BG, np.int64)
-        self.mu_disc = np.zeros(n)
-        for i, v in enumerate(vs):
-            if isinstance(v.brake, BlockBrake):
-                self.kind[i] = BRAKE_BLOCKS
-                self.blocks[i] = float(v.brake.blocks)
-                self.arrangement[i] = ARR_BGU if v.brake.arrangement == "Bgu" else ARR_BG
-            elif isinstance(v.brake, DiscBrake):
-                self.kind[i] = BRAKE_DISC
-                self.mu_disc[i] = (v.brake.mu_eff if v.brake.mu_eff is not None
-                                   else sim.params.mu_eff)
+        self.mass = model.train.mass_kg
+        self.meff = model.train.meff_kg
+        self.axles = model.train.axles
+        fr = model.friction
+        self.kind, self.blocks, self.arrangement, self.mu_disc = (fr.kind, fr.blocks,
+                                                                  fr.arrangement, fr.mu_disc)
         self.fext = np.array(sim.fext_N, float)
-        self.fmax = np.array(sim.max_block_force_N, float)
-        self.delay = np.array(sim.brake_delay_s, float)
+        self.fmax = fr.force_max_N
+        self.delay = model.brakes.delay_s
         # Eq. 7 with each vehicle's filling time (UIC 540: G fills slower than P)
-        p = sim.params
-        t_fill_G = getattr(p, "t_fill_G_s", p.t_fill_s)
-        self.tau = np.array([(t_fill_G if getattr(v, "brake_position", "P") == "G"
-                              else p.t_fill_s) for v in vs]) / math.log(20.0)
+        self.tau = np.ascontiguousarray(model.brakes.coef[:, uic_empirical.TAU_EMERGENCY])
         self.resist = 1.0 if resistance else 0.0
-        self.xs = np.asarray(sim.lut.deflection_m, float)
-        self.f_load = np.asarray(sim.lut.loading_N, float)
-        self.f_unload = np.asarray(sim.lut.unloading_N, float)
-        self.v_th = float(sim.lut.v_th_m_s)
+        cp = model.couplers
+        self.coupler_model, self.coupler_table, self.coupler_coef = cp.model, cp.table, cp.coef
         if v_eps_m_s is None:
             v_eps_m_s = getattr(sim, "stick_band_m_s", V_EPS_M_S)
         self.v_eps = float(v_eps_m_s)
         self.v_stop = float(sim.standstill_m_s)
-        self._indices, self._indptr = _jac_pattern(n)
+        self._indices, self._indptr = _jac_pattern(self.n)
 
     def initial_state(self) -> np.ndarray:
         """y(0): every vehicle at the initial speed, couplers unloaded."""
@@ -216,7 +204,7 @@ class ReferenceModel:
         out = np.empty(2 * self.n)
         _rhs(t, y, out, self.meff, self.mass, self.axles, self.kind, self.blocks,
              self.arrangement, self.mu_disc, self.fext, self.fmax, self.delay, self.tau,
-             self.resist, self.xs, self.f_load, self.f_unload, self.v_th, self.v_eps)
+             self.resist, self.coupler_model, self.coupler_table, self.coupler_coef, self.v_eps)
         return out
 
     def jac(self, t: float, y: np.ndarray) -> csc_matrix:
@@ -224,7 +212,7 @@ class ReferenceModel:
         data = np.empty(self._indices.size)
         _jac_data(t, y, data, self.meff, self.mass, self.axles, self.kind, self.blocks,
                   self.arrangement, self.mu_disc, self.fmax, self.delay, self.tau, self.resist,
-                  self.xs, self.f_load, self.f_unload, self.v_th, self.v_eps)
+                  self.coupler_model, self.coupler_table, self.coupler_coef, self.v_eps)
         m = 2 * self.n
         return csc_matrix((data, self._indices, self._indptr), shape=(m, m))
 
@@ -233,7 +221,8 @@ class ReferenceModel:
         y = np.asarray(y, float)
         cols = np.ascontiguousarray(y.reshape(2 * self.n, -1))
         out = np.zeros((cols.shape[1], max(self.n - 1, 0)))
-        _coupler_forces(cols, self.n, self.xs, self.f_load, self.f_unload, self.v_th, out)
+        _coupler_forces(cols, self.n, self.coupler_model, self.coupler_table, self.coupler_coef,
+                        out)
         return out if y.ndim == 2 else out[0]
 
 

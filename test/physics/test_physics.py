@@ -7,6 +7,9 @@ import pytest
 from ltd_brake_ros import physics
 from ltd_brake_ros.inputs import (BrakeParams, consist_from_mapping, get_scenario,
                                   load_coupler_lut)
+from ltd_brake_ros.physics.brakes import friction
+from ltd_brake_ros.physics.brakes.uic_empirical import rise_fraction
+from ltd_brake_ros.physics.couplers.lut_hysteresis import coupler_force
 from ltd_brake_ros.simulator import Commands, Simulator
 
 
@@ -43,18 +46,18 @@ def test_running_resistance_eq2_hand_value():
 
 
 def test_karwatzki_hand_values():
-    assert physics.karwatzki_mu(100.0, 30.0) == pytest.approx(0.0864, abs=5e-5)
-    assert physics.karwatzki_mu(0.0, 30.0) == pytest.approx(0.259, abs=5e-4)
+    assert friction.karwatzki_mu(100.0, 30.0) == pytest.approx(0.0864, abs=5e-5)
+    assert friction.karwatzki_mu(0.0, 30.0) == pytest.approx(0.259, abs=5e-4)
     # friction rises as the train slows and falls with block force
-    assert physics.karwatzki_mu(50.0, 30.0) > physics.karwatzki_mu(100.0, 30.0)
-    assert physics.karwatzki_mu(100.0, 10.0) > physics.karwatzki_mu(100.0, 30.0)
+    assert friction.karwatzki_mu(50.0, 30.0) > friction.karwatzki_mu(100.0, 30.0)
+    assert friction.karwatzki_mu(100.0, 10.0) > friction.karwatzki_mu(100.0, 30.0)
 
 
 def test_block_mu_derivative_matches_finite_difference():
-    for arr in (physics.ARR_BG, physics.ARR_BGU):
-        mu, dmu = physics.block_mu(20.0, 40.0, arr)
+    for arr in (friction.ARR_BG, friction.ARR_BGU):
+        mu, dmu = friction.block_mu(20.0, 40.0, arr)
         eps = 1e-6
-        fd = (physics.block_mu(20.0 + eps, 40.0, arr)[0] - physics.block_mu(20.0 - eps, 40.0, arr)[0]) / (2 * eps)
+        fd = (friction.block_mu(20.0 + eps, 40.0, arr)[0] - friction.block_mu(20.0 - eps, 40.0, arr)[0]) / (2 * eps)
         assert dmu == pytest.approx(fd, rel=1e-6)
 
 
@@ -65,37 +68,37 @@ def test_coupler_eq3_branches(lut):
     xs, fl, fu, vth = lut_arrays(lut)
     # draft, 50 mm: F_L = 80 kN, F_U = 48 kN
     d = 0.050
-    assert physics.coupler_force(d, 1.0, xs, fl, fu, vth)[0] == pytest.approx(80e3)   # loading
-    assert physics.coupler_force(d, -1.0, xs, fl, fu, vth)[0] == pytest.approx(48e3)  # unloading
-    assert physics.coupler_force(d, 0.0, xs, fl, fu, vth)[0] == pytest.approx(64e3)   # mean
-    assert physics.coupler_force(d, 0.5 * vth, xs, fl, fu, vth)[0] == pytest.approx(72e3)
+    assert coupler_force(d, 1.0, xs, fl, fu, vth)[0] == pytest.approx(80e3)   # loading
+    assert coupler_force(d, -1.0, xs, fl, fu, vth)[0] == pytest.approx(48e3)  # unloading
+    assert coupler_force(d, 0.0, xs, fl, fu, vth)[0] == pytest.approx(64e3)   # mean
+    assert coupler_force(d, 0.5 * vth, xs, fl, fu, vth)[0] == pytest.approx(72e3)
     # buff, -100 mm: F_L = -240 kN (loading = compressing, rate < 0), F_U = -120 kN
     d = -0.100
-    assert physics.coupler_force(d, -1.0, xs, fl, fu, vth)[0] == pytest.approx(-240e3)
-    assert physics.coupler_force(d, 1.0, xs, fl, fu, vth)[0] == pytest.approx(-120e3)
-    assert physics.coupler_force(d, 0.0, xs, fl, fu, vth)[0] == pytest.approx(-180e3)
+    assert coupler_force(d, -1.0, xs, fl, fu, vth)[0] == pytest.approx(-240e3)
+    assert coupler_force(d, 1.0, xs, fl, fu, vth)[0] == pytest.approx(-120e3)
+    assert coupler_force(d, 0.0, xs, fl, fu, vth)[0] == pytest.approx(-180e3)
 
 
 @pytest.mark.parametrize("d", [-0.15, -0.03, 0.01, 0.06, 0.09])
 def test_coupler_eq3_continuous_at_band_edges(lut, d):
     xs, fl, fu, vth = lut_arrays(lut)
     for edge in (vth, -vth):
-        inside = physics.coupler_force(d, edge * (1 - 1e-9), xs, fl, fu, vth)[0]
-        outside = physics.coupler_force(d, edge * (1 + 1e-9), xs, fl, fu, vth)[0]
+        inside = coupler_force(d, edge * (1 - 1e-9), xs, fl, fu, vth)[0]
+        outside = coupler_force(d, edge * (1 + 1e-9), xs, fl, fu, vth)[0]
         assert inside == pytest.approx(outside, rel=1e-6, abs=1e-3)
 
 
 def test_coupler_derivatives_match_finite_differences(lut):
     xs, fl, fu, vth = lut_arrays(lut)
     for d, r in [(0.035, 0.3 * vth), (-0.08, -0.7 * vth), (0.065, 2 * vth), (-0.12, -5 * vth)]:
-        _, dfd, dfr, _, _ = physics.coupler_force(d, r, xs, fl, fu, vth)
+        _, dfd, dfr, _, _ = coupler_force(d, r, xs, fl, fu, vth)
         e = 1e-7
-        fdd = (physics.coupler_force(d + e, r, xs, fl, fu, vth)[0]
-               - physics.coupler_force(d - e, r, xs, fl, fu, vth)[0]) / (2 * e)
+        fdd = (coupler_force(d + e, r, xs, fl, fu, vth)[0]
+               - coupler_force(d - e, r, xs, fl, fu, vth)[0]) / (2 * e)
         assert dfd == pytest.approx(fdd, rel=1e-5)
         er = 1e-3 * vth
-        fdr = (physics.coupler_force(d, r + er, xs, fl, fu, vth)[0]
-               - physics.coupler_force(d, r - er, xs, fl, fu, vth)[0]) / (2 * er)
+        fdr = (coupler_force(d, r + er, xs, fl, fu, vth)[0]
+               - coupler_force(d, r - er, xs, fl, fu, vth)[0]) / (2 * er)
         assert dfr == pytest.approx(fdr, rel=1e-5, abs=1e-3)
 
 
@@ -104,28 +107,28 @@ def test_coupler_extrapolates_with_end_slopes(lut):
     # beyond +150 mm both curves continue with their last segments' slopes
     ext_l = 2850e3 + (2850e3 - 450e3) / 0.040 * 0.010
     ext_u = 2850e3 + (2850e3 - 270e3) / 0.040 * 0.010
-    loading = physics.coupler_force(0.160, 1.0, xs, fl, fu, vth)[0]
-    unloading = physics.coupler_force(0.160, -1.0, xs, fl, fu, vth)[0]
+    loading = coupler_force(0.160, 1.0, xs, fl, fu, vth)[0]
+    unloading = coupler_force(0.160, -1.0, xs, fl, fu, vth)[0]
     # Eq. 3 written with |F_L - F_U| keeps the cycle dissipative even where the extrapolated
     # curves cross: loading takes the larger force, unloading the smaller
     assert loading == pytest.approx(max(ext_l, ext_u))
     assert unloading == pytest.approx(min(ext_l, ext_u))
     buff_l = -6500e3 - (-2000e3 + 6500e3) / 0.090 * 0.010
     buff_u = -6500e3 - (-1000e3 + 6500e3) / 0.090 * 0.010
-    assert physics.coupler_force(-0.310, -1.0, xs, fl, fu, vth)[0] == pytest.approx(min(buff_l, buff_u))
+    assert coupler_force(-0.310, -1.0, xs, fl, fu, vth)[0] == pytest.approx(min(buff_l, buff_u))
     # stiffness beyond the ends is never zero: vehicles cannot pass through each other
-    assert physics.coupler_force(-0.400, 0.0, xs, fl, fu, vth)[1] > 1e7
-    assert physics.coupler_force(0.300, 0.0, xs, fl, fu, vth)[1] > 1e7
+    assert coupler_force(-0.400, 0.0, xs, fl, fu, vth)[1] > 1e7
+    assert coupler_force(0.300, 0.0, xs, fl, fu, vth)[1] > 1e7
 
 
 # ----------------------------------------------------------------------------- Eq. 4-7
 
 
-@pytest.mark.parametrize("arrangement", [physics.ARR_BG, physics.ARR_BGU])
+@pytest.mark.parametrize("arrangement", [friction.ARR_BG, friction.ARR_BGU])
 @pytest.mark.parametrize("braked_t", [10.0, 58.55, 120.0])
 def test_eq4_inversion_round_trip(arrangement, braked_t):
-    s = physics.sum_block_force_kN(braked_t, 8.0, 2.72, arrangement)
-    assert physics.braked_weight_t(s, 8.0, 2.72, arrangement) == pytest.approx(braked_t, rel=1e-10)
+    s = friction.sum_block_force_kN(braked_t, 8.0, 2.72, arrangement)
+    assert friction.braked_weight_t(s, 8.0, 2.72, arrangement) == pytest.approx(braked_t, rel=1e-10)
 
 
 def test_eq4_disc_locomotive():
@@ -143,7 +146,7 @@ def test_eq5_rise_at_t_app_and_t_fill():
     sim.advance(params.t_fill_s)
     head = sim.snapshot().block_force_N[0] / sim.max_block_force_N[0]
     assert head == pytest.approx(0.95, rel=1e-9)  # tau = t_fill / ln 20
-    assert physics.rise_fraction(5.0, 5.0 / math.log(20)) == pytest.approx(0.95)
+    assert rise_fraction(5.0, 5.0 / math.log(20)) == pytest.approx(0.95)
 
 
 def test_eq6_delay_grows_with_distance_from_head():
@@ -185,11 +188,11 @@ def test_momentum_conserved_without_brakes_and_resistance():
     sim = Simulator(short_train(8), 60.0, resistance=False, brakes=False)
     # an internal pair of forces: the head pulls, the tail pushes back; the couplers oscillate
     sim.fext_N[0], sim.fext_N[-1] = 150e3, -150e3
-    p0 = float(np.sum(sim._meff * sim.snapshot().speed_m_s))
+    p0 = float(np.sum(sim.model.train.meff_kg * sim.snapshot().speed_m_s))
     max_force = 0.0
     for _ in range(200):
         snap = sim.advance(0.02, Commands(emergency=True))
-        p = float(np.sum(sim._meff * snap.speed_m_s))
+        p = float(np.sum(sim.model.train.meff_kg * snap.speed_m_s))
         assert p == pytest.approx(p0, rel=1e-12)
         max_force = max(max_force, np.abs(snap.coupler_force_N).max())
     assert max_force > 50e3  # the check was not trivial
@@ -197,7 +200,7 @@ def test_momentum_conserved_without_brakes_and_resistance():
 
 def test_dissipated_energy_never_exceeds_initial_kinetic_energy():
     sim = Simulator(short_train(10, 50.0), 100.0)
-    ke = lambda s: 0.5 * float(np.sum(sim._meff * s.speed_m_s ** 2))  # noqa: E731
+    ke = lambda s: 0.5 * float(np.sum(sim.model.train.meff_kg * s.speed_m_s ** 2))  # noqa: E731
     snap = sim.snapshot()
     ke0 = ke(snap)
     work = 0.0

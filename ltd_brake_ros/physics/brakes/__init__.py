@@ -1,0 +1,153 @@
+"""Brake models: the contract every model implements, the registry and the one dispatch.
+
+A brake model turns the driver's brake commands into the block force of every vehicle; the
+friction law (:mod:`.friction`, Eq. 4 and 8-10, shared by every model) turns block force into
+retarding force at the wheels.
+
+Contract
+--------
+A brake model is one module of this package that defines:
+
+1. ``NAME`` (the ``model:`` value of a brake-parameter file), ``ID`` (its branch of
+   :func:`advance`), a frozen ``Params`` dataclass whose fields carry their units in their
+   names and are declared with :func:`~ltd_brake_ros.physics.parameters.parameter` (meaning and
+   accepted range; the input layer builds ``Params`` from a mapping with its shared field
+   checks), and ``FITTABLE`` = {short name: :class:`~ltd_brake_ros.physics.parameters.Fittable`
+   (field, unit, lower, upper, scale, meaning)}: calibration reads it, so a new model needs no
+   change there.
+2. ``compile(consist, params, force_max_N)`` -> :class:`BrakeArrays`: per-vehicle arrays, built
+   once, never mutated; ``force_max_N`` is the full block force from :func:`friction.compile`.
+3. ``initial_state(arrays)`` -> :class:`BrakeState`: the model's only mutable state, released
+   brakes; the simulator's reset copies it.
+4. ``advance(arrays, state, events, t0, t1)``, compiled with numba: every vehicle's block force
+   from t0 to t1 [s] under the :class:`CommandEvents` issued at the head, in place; a command
+   reaches vehicle i ``arrays.delay_s[i]`` after it was issued. The result must not depend on
+   how [t0, t1] is split into steps.
+5. Events and snapshot: the simulator raises ``brake_applied`` and ``brake_released`` when the
+   commands change; ``snapshot_extras(arrays, state)`` returns the model's further quantities
+   (per-vehicle arrays, units in the keys; ``{}`` for none), the snapshot always shows the
+   block forces.
+6. Register: one line in :data:`MODELS` and one branch in :func:`advance`.
+7. The contract tests (``test/physics/test_brake_contract.py``) run over every registered
+   model: no force before the command reaches a vehicle, a monotone rise under emergency, decay
+   on release, advancing in two pieces equals one piece, and a whole stop.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from ..equations import jit
+from . import friction, linear_ramp, uic_empirical
+from .base import EMERGENCY, SERVICE, BrakeArrays, BrakeState, CommandEvents, CompileError
+
+__all__ = ["EMERGENCY", "SERVICE", "BrakeArrays", "BrakeState", "BrakeParams", "CommandEvents",
+           "CompileError", "DEFAULT_MODEL", "MODELS", "advance", "friction", "model_of"]
+
+#: Registered brake models by name.
+MODELS = {m.NAME: m for m in (
+    uic_empirical,
+    linear_ramp,
+)}
+#: The model of a parameter file that names none: the paper's.
+DEFAULT_MODEL = uic_empirical.NAME
+
+
+@jit
+def advance(arrays, state, events, t0, t1):
+    """Advance the block forces of the model ``arrays.model`` from t0 to t1 [s] (in place)."""
+    if arrays.model == uic_empirical.ID:
+        uic_empirical.advance(arrays, state, events, t0, t1)
+    elif arrays.model == linear_ramp.ID:
+        linear_ramp.advance(arrays, state, events, t0, t1)
+
+
+def model_of(params) -> Any:
+    """The registered model module whose ``Params`` type ``params`` is.
+
+    Parameters
+    ----------
+    params : dataclass
+        A model's ``Params``.
+
+    Returns
+    -------
+    module
+    """
+    for module in MODELS.values():
+        if type(params) is module.Params:
+            return module
+    raise TypeError(f"{type(params).__name__} is not the Params of a registered brake model")
+
+
+@dataclass(frozen=True, init=False)
+class BrakeParams:
+    """Brake parameters of a run: the brake model's, the friction law's, and their file.
+
+    Besides ``pneumatic`` and ``friction``, every field of the two is readable as an attribute
+    (``params.t_app_s``, ``params.k0``) and may be given by name to the constructor or to
+    :func:`dataclasses.replace`.
+
+    Parameters
+    ----------
+    pneumatic : dataclass, optional
+        The brake model's ``Params`` (default: ``model``'s defaults).
+    friction : friction.Params, optional
+        Friction parameters (default: the paper's).
+    source : str, optional
+        File the values came from.
+    model : str, optional
+        Registered model name, when ``pneumatic`` is not given (default :data:`DEFAULT_MODEL`).
+    **fields
+        Values of individual fields of either part.
+
+    Attributes
+    ----------
+    pneumatic : dataclass
+    friction : friction.Params
+    source : str
+    """
+
+    pneumatic: Any
+    friction: friction.Params
+    source: str
+
+    def __init__(self, pneumatic=None, friction=None, source: str = "built-in defaults", *,
+                 model: str | None = None, **fields):
+        from . import friction as friction_module
+
+        if pneumatic is None:
+            name = model or DEFAULT_MODEL
+            if name not in MODELS:
+                raise ValueError(f"unknown brake model {name!r}; known: {', '.join(MODELS)}")
+            pneumatic = MODELS[name].Params()
+        elif model is not None and model_of(pneumatic).NAME != model:
+            raise ValueError(f"model {model!r} does not match {type(pneumatic).__qualname__}")
+        friction = friction_module.Params() if friction is None else friction
+        parts = {"pneumatic": pneumatic, "friction": friction}
+        for part, value in parts.items():
+            names = {f.name for f in dataclasses.fields(value)}
+            mine = {k: fields.pop(k) for k in list(fields) if k in names}
+            if mine:
+                parts[part] = dataclasses.replace(value, **mine)
+        if fields:
+            raise TypeError(f"brake model {model_of(pneumatic).NAME!r} has no parameter "
+                            f"{', '.join(map(repr, fields))}")
+        object.__setattr__(self, "pneumatic", parts["pneumatic"])
+        object.__setattr__(self, "friction", parts["friction"])
+        object.__setattr__(self, "source", str(source))
+
+    @property
+    def model(self) -> str:
+        """Name of the brake model."""
+        return model_of(self.pneumatic).NAME
+
+    def __getattr__(self, name: str):
+        # only called for names that are not attributes: the fields of the two parts
+        if not name.startswith("_"):
+            for part in ("pneumatic", "friction"):
+                value = self.__dict__.get(part)
+                if value is not None and hasattr(value, name):
+                    return getattr(value, name)
+        raise AttributeError(f"{type(self).__name__!s} has no attribute {name!r}")

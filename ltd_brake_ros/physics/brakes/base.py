@@ -1,0 +1,181 @@
+"""What every brake model shares: the bundles the kernel passes, the command events, Eq. 6.
+
+See the contract in :mod:`ltd_brake_ros.physics.brakes`.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+#: Kinds of command events: an emergency application, or a service application/release.
+EMERGENCY, SERVICE = 0, 1
+
+
+class CompileError(ValueError):
+    """Per-vehicle arrays cannot be built from these inputs.
+
+    Parameters
+    ----------
+    field : str
+        Path of the offending input, e.g. ``vehicles[3].brake``.
+    reason : str
+        What is wrong.
+    """
+
+    def __init__(self, field: str, reason: str):
+        self.field, self.reason = field, reason
+        super().__init__(f"{field}: {reason}")
+
+
+class BrakeArrays(NamedTuple):
+    """A brake model compiled for one train: built once, never mutated.
+
+    Attributes
+    ----------
+    model : int
+        Registry id of the model (selects its branch of the one jitted dispatch).
+    delay_s : ndarray
+        When a command issued at the head reaches each vehicle's brake, after the command [s].
+    force_max_N : ndarray
+        Full block force of each vehicle, 1000 * sum(F_dyn) (Eq. 4 inverted) [N]; zeros when
+        the brakes are switched off.
+    coef : ndarray, shape (n, k)
+        The model's other per-vehicle constants, columns named by the model.
+    """
+
+    model: int
+    delay_s: np.ndarray
+    force_max_N: np.ndarray
+    coef: np.ndarray
+
+
+class BrakeState(NamedTuple):
+    """The mutable state of a brake model (arrays updated in place by the advance).
+
+    Attributes
+    ----------
+    force_N : ndarray
+        Total block force of each vehicle, F_B,tot [N].
+    level : ndarray
+        Level (0-1 of the full force) of the last command each vehicle has received.
+    level_kind : ndarray of int
+        Kind of that command (:data:`EMERGENCY` or :data:`SERVICE`).
+    next_event : ndarray of int
+        Index of the next command event each vehicle has not yet received.
+    extra : ndarray, shape (n, k)
+        The model's other state, columns named by the model (k = 0 for none).
+    """
+
+    force_N: np.ndarray
+    level: np.ndarray
+    level_kind: np.ndarray
+    next_event: np.ndarray
+    extra: np.ndarray
+
+    def copy(self) -> "BrakeState":
+        """An independent copy."""
+        return BrakeState(*(a.copy() for a in self))
+
+
+class CommandEvents(NamedTuple):
+    """Brake commands issued at the head, oldest first.
+
+    Attributes
+    ----------
+    time_s : ndarray
+        When each was issued [s].
+    level : ndarray
+        Demanded fraction of the full block force (0 = release).
+    kind : ndarray of int
+        :data:`EMERGENCY` or :data:`SERVICE`.
+    count : int
+        Number of valid entries.
+    """
+
+    time_s: np.ndarray
+    level: np.ndarray
+    kind: np.ndarray
+    count: int
+
+    @classmethod
+    def empty(cls, capacity: int = 8) -> "CommandEvents":
+        """No command yet."""
+        return cls(np.zeros(capacity), np.zeros(capacity), np.zeros(capacity, np.int64), 0)
+
+    def copy(self) -> "CommandEvents":
+        """An independent copy."""
+        return CommandEvents(self.time_s.copy(), self.level.copy(), self.kind.copy(), self.count)
+
+    def appended(self, time_s: float, level: float, kind: int,
+                 received: int) -> "CommandEvents":
+        """These events without the first ``received`` (every vehicle has them), plus one.
+
+        Parameters
+        ----------
+        time_s, level, kind
+            The new command.
+        received : int
+            Leading events every vehicle has already received.
+
+        Returns
+        -------
+        CommandEvents
+            Arrays are reused (and grown when full).
+        """
+        t, lv, kd, n = self.time_s, self.level, self.kind, self.count
+        if received:
+            m = n - received
+            t[:m] = t[received:n].copy()
+            lv[:m] = lv[received:n].copy()
+            kd[:m] = kd[received:n].copy()
+            n = m
+        if n == t.size:
+            t = np.concatenate((t, np.zeros(t.size)))
+            lv = np.concatenate((lv, np.zeros(lv.size)))
+            kd = np.concatenate((kd, np.zeros(kd.size, np.int64)))
+        t[n], lv[n], kd[n] = time_s, level, kind
+        return CommandEvents(t, lv, kd, n + 1)
+
+
+def released_state(n: int, extra_columns: int = 0) -> BrakeState:
+    """Brake state of a released train that has received no command.
+
+    Parameters
+    ----------
+    n : int
+        Vehicles.
+    extra_columns : int, optional
+        Columns of the model's own state.
+
+    Returns
+    -------
+    BrakeState
+    """
+    return BrakeState(np.zeros(n), np.zeros(n), np.zeros(n, np.int64), np.zeros(n, np.int64),
+                      np.zeros((n, extra_columns)))
+
+
+def head_vent_delay_s(distance_m: np.ndarray, t_app_s: float, v_air_m_s: float,
+                      simultaneous: bool) -> np.ndarray:
+    """Delay of each vehicle's brake after a command at the head, Eq. 5-6.
+
+    t_app + t_del, t_del = distance / v_air (0 when every vehicle is commanded at once).
+
+    Parameters
+    ----------
+    distance_m : ndarray
+        Distance of each vehicle's centre behind the head's centre [m].
+    t_app_s : float
+        Delay from the command to the pressure rise at the head [s].
+    v_air_m_s : float
+        Propagation speed of the brake-pipe pressure drop [m/s].
+    simultaneous : bool
+        The command reaches every vehicle at once.
+
+    Returns
+    -------
+    ndarray
+        [s].
+    """
+    return t_app_s + (0.0 * distance_m if simultaneous else distance_m / v_air_m_s)

@@ -1,0 +1,188 @@
+"""The paper's empirical UIC air brake: delays and exponential filling, Eq. 5-7.
+
+Each vehicle's block force relaxes exponentially towards a piecewise-constant target, the level
+of the last command it has received times its full force. The command reaches vehicle i
+t_app + t_del,i after it was issued at the head (Eq. 6, t_del = distance / v_air). A rise follows
+the filling time constant tau = t_fill / ln 20 (Eq. 7: 95 % after t_fill), a fall the release
+one. The relaxation is integrated exactly, so for an emergency application from rest this is
+Eq. 5, F = F_max (1 - exp(-(t - t_cmd - t_app - t_del) / tau)), for any step.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..equations import centre_offsets_m, jit
+from ..parameters import Fittable, parameter
+from .base import BrakeArrays, EMERGENCY, head_vent_delay_s, released_state
+
+NAME = "uic_empirical"
+#: Registry id: selects this model's branch of the jitted dispatch.
+ID = 0
+
+#: Columns of ``BrakeArrays.coef``: time constants of an emergency application, a service
+#: application and a release [s].
+TAU_EMERGENCY, TAU_SERVICE, TAU_RELEASE = 0, 1, 2
+
+LN20 = math.log(20.0)
+
+
+@dataclass(frozen=True)
+class Params:
+    """Parameters of the empirical UIC air brake (Eq. 5-7, Table 3).
+
+    Attributes
+    ----------
+    t_app_s : float
+        Delay between the command and the brake-cylinder pressure rise [s].
+    v_air_m_s : float
+        Propagation speed of the brake-pipe pressure drop (Eq. 6) [m/s].
+    t_fill_s : float
+        Brake-cylinder filling time; time constant tau = t_fill / ln 20 (Eq. 7) [s].
+    t_release_s : float
+        Release time in P: block force decays with tau = t_release / ln 20 (not in the
+        paper) [s].
+    t_fill_G_s : float
+        Brake-cylinder filling time of vehicles in G (UIC 540: 18-30 s) [s]. Not validated.
+    t_release_G_s : float
+        Release time of vehicles in G (UIC 540: 45-60 s) [s]. Not validated.
+    t_service_fill_s : float
+        Filling time of a service application in P; G vehicles scale it by
+        t_fill_G / t_fill. A default for experiments, not validated [s].
+    simultaneous : bool
+        The command reaches every vehicle at once (t_del = 0 in Eq. 6), as with
+        electronically controlled pneumatic brakes or radio distributed power; the paper's
+        model is for a brake pipe vented at the head only. Not validated.
+    """
+
+    t_app_s: float = parameter(1.0, "delay between command and brake-cylinder pressure rise [s]",
+                               lo=0.0, hi=60.0)
+    v_air_m_s: float = parameter(200.0, "propagation speed of the brake-pipe pressure drop [m/s]",
+                                 lo=0.0, lo_open=True, hi=400.0)
+    t_fill_s: float = parameter(5.0, "brake-cylinder filling time, tau = t_fill / ln 20 "
+                                "(Eq. 7) [s]", lo=0.0, lo_open=True, hi=300.0)
+    t_release_s: float = parameter(15.0, "release: block force decays with tau = t_release / "
+                                   "ln 20 (not in the paper) [s]", lo=0.0, lo_open=True, hi=600.0)
+    t_fill_G_s: float = parameter(25.0, "brake-cylinder filling time in G (UIC 540) [s]",
+                                  lo=0.0, lo_open=True, hi=300.0)
+    t_release_G_s: float = parameter(50.0, "release time in G (UIC 540) [s]",
+                                     lo=0.0, lo_open=True, hi=600.0)
+    t_service_fill_s: float = parameter(7.0, "filling time of a service application in P [s]",
+                                        lo=0.0, lo_open=True, hi=300.0)
+    simultaneous: bool = parameter(False, "the command reaches every vehicle at once "
+                                   "(t_del = 0 in Eq. 6)")
+
+    @property
+    def tau_apply_s(self) -> float:
+        """Time constant of the exponential rise, Eq. 7 [s]."""
+        return self.t_fill_s / LN20
+
+    @property
+    def tau_release_s(self) -> float:
+        """Time constant of the exponential release [s]."""
+        return self.t_release_s / LN20
+
+
+#: Parameters calibration may fit, by short name.
+FITTABLE = {
+    "t_app": Fittable("t_app_s", "s", 0.0, 5.0, 1.0,
+                      "delay from the command to the pressure rise at the head"),
+    "v_air": Fittable("v_air_m_s", "m/s", 100.0, 340.0, 200.0,
+                      "propagation speed of the brake-pipe pressure drop (Eq. 6)"),
+    "t_fill": Fittable("t_fill_s", "s", 2.0, 30.0, 5.0,
+                       "brake-cylinder filling time, tau = t_fill / ln 20 (Eq. 7)"),
+}
+
+
+def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  # noqa: A001
+    """Per-vehicle delays and time constants of a train.
+
+    Parameters
+    ----------
+    consist : Consist
+        The train, head first (vehicle lengths and brake positions).
+    params : Params
+    force_max_N : ndarray
+        Full block force of each vehicle [N] (zeros: brakes switched off).
+
+    Returns
+    -------
+    BrakeArrays
+        ``coef`` columns :data:`TAU_EMERGENCY`, :data:`TAU_SERVICE`, :data:`TAU_RELEASE`.
+    """
+    vs = consist.vehicles
+    centre = centre_offsets_m(np.array([v.length_m for v in vs]))
+    delay = head_vent_delay_s(centre - centre[0], params.t_app_s, params.v_air_m_s,
+                              params.simultaneous)
+    # brake position: G fills (and releases) slower; service applications scale alike
+    in_g = np.array([v.brake_position == "G" for v in vs])
+    fill = np.where(in_g, params.t_fill_G_s, params.t_fill_s)
+    coef = np.empty((len(vs), 3))
+    coef[:, TAU_EMERGENCY] = fill / LN20
+    coef[:, TAU_SERVICE] = params.t_service_fill_s * fill / params.t_fill_s / LN20
+    coef[:, TAU_RELEASE] = np.where(in_g, params.t_release_G_s, params.t_release_s) / LN20
+    return BrakeArrays(ID, delay, np.ascontiguousarray(force_max_N, float), coef)
+
+
+def initial_state(arrays: BrakeArrays):
+    """Released brakes, no command received (no state beyond the common one)."""
+    return released_state(arrays.delay_s.shape[0])
+
+
+@jit
+def _relax(force, target, dt, tau_apply, tau_release):
+    tau = tau_apply if target > force else tau_release
+    return target + (force - target) * math.exp(-dt / tau)
+
+
+@jit
+def advance(arrays, state, events, t0, t1):
+    """Advance every vehicle's block force exactly from t0 to t1 [s] (state updated in place).
+
+    Each vehicle relaxes exponentially towards ``level * force_max``, where the level is that
+    of the last command event it has received (event time + its delay). An increase follows
+    the application time constant of the event's kind, a decrease the release time constant.
+    """
+    fb, lvl, lkind, nxt = state.force_N, state.level, state.level_kind, state.next_event
+    delay, fmax, coef = arrays.delay_s, arrays.force_max_N, arrays.coef
+    ev_t, ev_lvl, ev_kind, n_ev = events.time_s, events.level, events.kind, events.count
+    for i in range(fb.shape[0]):
+        t = t0
+        f = fb[i]
+        while nxt[i] < n_ev and ev_t[nxt[i]] + delay[i] <= t1:
+            te = max(ev_t[nxt[i]] + delay[i], t)
+            ta = coef[i, TAU_EMERGENCY] if lkind[i] == EMERGENCY else coef[i, TAU_SERVICE]
+            f = _relax(f, lvl[i] * fmax[i], te - t, ta, coef[i, TAU_RELEASE])
+            t = te
+            lvl[i] = ev_lvl[nxt[i]]
+            lkind[i] = ev_kind[nxt[i]]
+            nxt[i] += 1
+        ta = coef[i, TAU_EMERGENCY] if lkind[i] == EMERGENCY else coef[i, TAU_SERVICE]
+        fb[i] = _relax(f, lvl[i] * fmax[i], t1 - t, ta, coef[i, TAU_RELEASE])
+
+
+def snapshot_extras(arrays: BrakeArrays, state) -> dict:
+    """Model quantities a snapshot shows beyond the block forces: none."""
+    return {}
+
+
+@jit
+def rise_fraction(t_since_onset_s, tau_s):
+    """Fraction of the maximum block force reached, Eq. 5 (0 before the onset).
+
+    Parameters
+    ----------
+    t_since_onset_s : float
+        t - t_cmd - t_app - t_del [s].
+    tau_s : float
+        Time constant, Eq. 7 [s].
+
+    Returns
+    -------
+    float
+    """
+    if t_since_onset_s <= 0.0:
+        return 0.0
+    return 1.0 - math.exp(-t_since_onset_s / tau_s)

@@ -1,0 +1,113 @@
+"""Coupler models: the contract every model implements, the registry and the one dispatch.
+
+Every coupler of a train has the same characteristic; coupler j joins vehicles j and j + 1
+(numbered from 0 at the head) with deflection x_j - x_{j+1} and rate v_j - v_{j+1}, both
+draft positive.
+
+Contract
+--------
+A coupler model is one module of this package that defines:
+
+1. ``NAME`` (the ``model:`` value of a coupler file), ``ID`` (its branch of :func:`force`), a
+   frozen ``Params`` dataclass (units in the field names; fields declared with
+   :func:`~ltd_brake_ros.physics.parameters.parameter` are read from a file by the input
+   layer's shared field checks), ``FITTABLE`` (as for brake models; may be empty) and
+   ``compile(params)`` -> :class:`CouplerArrays`, built once, never mutated.
+2. ``force(table, coef, defl_m, rate_m_s)``, compiled with numba (inlined into the kernel's
+   loops, so it takes the arrays of its :class:`CouplerArrays`, not the bundle): the force
+   [N, draft positive], d(force)/d(deflection) [N/m] and d(force)/d(rate) [N/(m/s)].
+3. **Monotone**: the force is non-decreasing in deflection and in rate, both derivatives are
+   >= 0. The kernel's Newton system is tridiagonal and symmetric positive definite, and its
+   line search minimises a convex potential, only then. The contract tests check it on a grid.
+4. ``CouplerArrays.band_m_s``: the half-width of any steep band in rate (Eq. 3's v_th; 0 if
+   none), which the kernel's safeguard keeps Newton updates from jumping across.
+5. ``CouplerArrays.valid_lo_m``/``valid_hi_m``: the deflections the characteristic is valid for
+   (the simulator reports how far a coupler went beyond them); ``Params.draft_strength_N`` and
+   ``Params.buff_strength_N``: the strength limits (magnitudes, inf when unknown) that
+   verdicts on a run use.
+6. Register: one line in :data:`MODELS` and one branch in :func:`force`.
+7. The contract tests (``test/physics/test_coupler_contract.py``) run over every registered
+   model.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from ..equations import jit, jit_inline
+from . import linear, lut_hysteresis
+from .base import CouplerArrays
+
+__all__ = ["CouplerArrays", "DEFAULT_MODEL", "MODELS", "force", "force_of", "model_of"]
+
+#: Registered coupler models by name.
+MODELS = {m.NAME: m for m in (
+    lut_hysteresis,
+    linear,
+)}
+#: The model of a coupler file that names none.
+DEFAULT_MODEL = lut_hysteresis.NAME
+
+
+@jit_inline
+def force(model, table, coef, defl_m, rate_m_s):
+    """Force [N], d/d(deflection) [N/m] and d/d(rate) [N/(m/s)] of a registered model.
+
+    ``model``, ``table`` and ``coef`` are the fields of the model's :class:`CouplerArrays`.
+    """
+    if model == lut_hysteresis.ID:
+        return lut_hysteresis.force(table, coef, defl_m, rate_m_s)
+    if model == linear.ID:
+        return linear.force(table, coef, defl_m, rate_m_s)
+    return math.nan, 0.0, 0.0
+
+
+def force_of(arrays: CouplerArrays, defl_m: float, rate_m_s: float) -> tuple[float, float, float]:
+    """:func:`force` of compiled arrays, for use from Python.
+
+    Parameters
+    ----------
+    arrays : CouplerArrays
+    defl_m : float
+        Deflection, draft positive [m].
+    rate_m_s : float
+        Deflection rate [m/s].
+
+    Returns
+    -------
+    force_N, dforce_ddefl_N_m, dforce_drate_N_s_m : float
+    """
+    return force(arrays.model, arrays.table, arrays.coef, float(defl_m), float(rate_m_s))
+
+
+def model_of(params) -> Any:
+    """The registered model module whose ``Params`` type ``params`` is.
+
+    Parameters
+    ----------
+    params : dataclass
+        A coupler model's ``Params``.
+
+    Returns
+    -------
+    module
+    """
+    for module in MODELS.values():
+        if type(params) is module.Params:
+            return module
+    raise TypeError(f"{type(params).__name__} is not the Params of a registered coupler model")
+
+
+def compile(params) -> CouplerArrays:  # noqa: A001 - the contract's name
+    """Compile any registered coupler model's parameters.
+
+    Parameters
+    ----------
+    params : dataclass
+        A registered model's ``Params``.
+
+    Returns
+    -------
+    CouplerArrays
+    """
+    return model_of(params).compile(params)
