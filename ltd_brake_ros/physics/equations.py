@@ -6,8 +6,6 @@ the name says otherwise (``_kmh``, ``_kN``, ``_t``).
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 try:  # pragma: no cover - exercised implicitly

@@ -34,7 +34,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from ..equations import jit, jit_inline
+from ..equations import jit_inline
 from . import linear, lut_hysteresis
 from .base import CouplerArrays
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..equations import jit, jit_inline
+from ..equations import jit_inline
 from ..parameters import REQUIRED, parameter
 from .base import CouplerArrays
 

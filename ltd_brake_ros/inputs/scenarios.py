@@ -1,0 +1,70 @@
+"""The scenario catalogue: the runs of the paper's Tables 1-2."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .consist import Consist, load_consist
+from .schema import Fields, InputError, config_dir, load_yaml
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One run of the paper's Tables 1-2.
+
+    Attributes
+    ----------
+    number : int
+        Simulation number in the paper.
+    consist_file : str
+        Consist file (relative to the shipped config directory).
+    speed_kmh : float
+        Initial speed [km/h].
+    paper : dict
+        Reference values: ``lambda_percent``, ``uic_m`` (None at 50 km/h), ``pugi_m``,
+        ``ltdpolito_m``, ``draft_kN``, ``draft_coupler``, ``buff_kN``, ``buff_coupler``.
+    """
+
+    number: int
+    consist_file: str
+    speed_kmh: float
+    paper: dict = field(default_factory=dict)
+
+    def consist(self) -> Consist:
+        """Load the scenario's consist."""
+        return load_consist(self.consist_file)
+
+
+def load_scenarios() -> dict[int, Scenario]:
+    """Load the shipped scenario catalogue (``config/scenarios.yaml``).
+
+    Returns
+    -------
+    dict of int to Scenario
+    """
+    p = config_dir() / "scenarios.yaml"
+    data = Fields(load_yaml(p), str(p)).data.get("scenarios") or {}
+    out = {}
+    for key, row in data.items():
+        f = Fields(row, str(p), f"scenarios.{key}")
+        paper = {k: v for k, v in row.items() if k not in ("consist", "speed_kmh")}
+        out[int(key)] = Scenario(int(key), f.string("consist"), f.number("speed_kmh", lo=0.0), paper)
+    return out
+
+
+def get_scenario(name: str | int) -> Scenario:
+    """Look up a scenario by number (``6``, ``"6"`` or ``"scenario_6"``).
+
+    Parameters
+    ----------
+    name : str or int
+
+    Returns
+    -------
+    Scenario
+    """
+    catalogue = load_scenarios()
+    text = str(name).strip().lower().removeprefix("scenario").strip("_ -")
+    if text.isdigit() and int(text) in catalogue:
+        return catalogue[int(text)]
+    raise InputError("scenario", "", f"unknown scenario {name!r}; known: "
+                     f"{', '.join(str(k) for k in sorted(catalogue))}")
