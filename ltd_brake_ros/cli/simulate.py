@@ -79,12 +79,10 @@ def _run_script(args: argparse.Namespace, spec) -> int:
 
     script = load_command_script(args.commands)
     events = []
-    start_m = []
 
     start = time.perf_counter()
     sim = scripted_run(spec.consist, spec.speed_kmh, script, spec.params, spec.lut, spec.track,
-                       step_s=args.step_s, on_start=lambda s: start_m.append(s.position_m[0]),
-                       on_chunk=lambda s: events.extend(s.events))
+                       step_s=args.step_s, on_chunk=lambda s: events.extend(s.events))
     wall = time.perf_counter() - start
     snap = sim.snapshot()
     peaks = sim.coupler_peaks()
@@ -92,7 +90,7 @@ def _run_script(args: argparse.Namespace, spec) -> int:
         "consist": spec.consist.name, "vehicles": spec.consist.n,
         "commands_file": script.source,
         "duration_s": sim.time_s, "final_speed_kmh": float(snap.speed_m_s[0]) * KMH_PER_MS,
-        "distance_travelled_m": float(snap.position_m[0] - start_m[0]),
+        "distance_travelled_m": sim.distance_travelled_m,
         "stopping_distance_m": sim.stopping_distance_m,
         "stop_time_s": None if sim.stop_time_s is None else sim.stop_time_s - sim.command_time_s,
         "peak_draft_kN": peaks.draft_N / 1e3, "peak_draft_coupler": peaks.draft_coupler,

@@ -101,7 +101,7 @@ def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | Non
 def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
                  params: BrakeParams | None = None, lut: CouplerLUT | None = None,
                  track: Track | None = None, *, step_s: float = 0.01, chunk_s: float = 0.1,
-                 max_time_s: float = 3600.0, on_start=None, on_chunk=None) -> Simulator:
+                 max_time_s: float = 3600.0, on_chunk=None) -> Simulator:
     """Run a train under a timed command script.
 
     The inputs change at chunk boundaries (every ``chunk_s``), as they would when a controller
@@ -119,8 +119,6 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
         Integration step and command-update interval [s].
     max_time_s : float, optional
         Upper bound when the script has no duration and the train does not stop [s].
-    on_start : callable, optional
-        Called with the initial :class:`~ltd_brake_ros.simulator.Snapshot`, before any command.
     on_chunk : callable, optional
         Called with each :class:`~ltd_brake_ros.simulator.Snapshot`.
 
@@ -131,8 +129,6 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
     """
     sim = Simulator(consist, speed_kmh, params or load_brake_params(), lut or load_coupler_lut(),
                     track, step_s=step_s)
-    if on_start:
-        on_start(sim.snapshot())
     end = script.duration_s if script.duration_s is not None else max_time_s
     state: dict = {}
     k = 0
