@@ -36,6 +36,9 @@ import numpy as np
 
 from ..inputs import (BrakeParams, Consist, CouplerLUT, InputError, load_brake_params,
                      load_coupler_lut, load_scenarios)
+from ..physics import brakes
+from ..physics.brakes import friction
+from ..physics.parameters import specs
 from .parallel import default_workers, process_pool
 
 #: Coefficients of the UIC 544-1 reference curve S = C / lambda + D at 100 km/h [m %], [m].
@@ -65,7 +68,8 @@ class FitParameter:
     name : str
         Short name used on the command line (``t_app``).
     field : str
-        :class:`~ltd_brake_ros.inputs.BrakeParams` field (``t_app_s``).
+        Field of the brake model's or the friction law's ``Params``, readable on
+        :class:`~ltd_brake_ros.inputs.BrakeParams` (``t_app_s``).
     unit : str
         Unit of the value.
     lower, upper : float
@@ -86,41 +90,46 @@ class FitParameter:
     meaning: str
 
 
-FIT_PARAMETERS: dict[str, FitParameter] = {p.name: p for p in (
-    FitParameter("t_app", "t_app_s", "s", 0.0, 5.0, 1.0,
-                 "delay from the command to the pressure rise at the head"),
-    FitParameter("v_air", "v_air_m_s", "m/s", 100.0, 340.0, 200.0,
-                 "propagation speed of the brake-pipe pressure drop (Eq. 6)"),
-    FitParameter("t_fill", "t_fill_s", "s", 2.0, 30.0, 5.0,
-                 "brake-cylinder filling time, tau = t_fill / ln 20 (Eq. 7)"),
-    # k0 > 0; the lower bound only keeps the block forces finite
-    FitParameter("k0", "k0", "-", 0.01, 100.0, 2.7,
-                 "scale of the UIC 544-1 k factor of cast-iron blocks"),
-    FitParameter("k_loco", "k_loco", "-", 0.01, 100.0, 3.5,
-                 "constant k factor of the disc-braked locomotive (Eq. 4)"),
-    FitParameter("mu_eff", "mu_eff", "-", 0.01, 1.0, 0.25,
-                 "effective disc friction coefficient of the locomotive (Eq. 10)"),
-)}
+def fit_parameters(model: str = brakes.DEFAULT_MODEL) -> dict[str, FitParameter]:
+    """The parameters a brake model lets calibration fit: its ``FITTABLE``, then the friction's.
 
-_FIELD_COMMENTS = {
-    "t_app_s": "delay between command and brake-cylinder pressure rise [s]",
-    "v_air_m_s": "propagation speed of the brake-pipe pressure drop [m/s]",
-    "t_fill_s": "brake-cylinder filling time, tau = t_fill / ln 20 (Eq. 7) [s]",
-    "k0": "scale of the UIC 544-1 k factor for cast-iron blocks (reconstructed) [-]",
-    "k_loco": "constant k factor of Eq. 4 for disc-braked locomotives [-]",
-    "mu_eff": "effective disc friction coefficient of Eq. 10 [-]",
-    "t_release_s": "release: block force decays with tau = t_release / ln 20 "
-                   "(not in the paper) [s]",
-}
+    Parameters
+    ----------
+    model : str, optional
+        Registered brake model (default: the paper's).
+
+    Returns
+    -------
+    dict of str to FitParameter
+        By short name.
+    """
+    table = {**brakes.MODELS[model].FITTABLE, **friction.FITTABLE}
+    return {name: FitParameter(name, *fit) for name, fit in table.items()}
 
 
-def parse_fit(text: str | Sequence[str]) -> list[FitParameter]:
+#: The parameters that can be fitted with the paper's brake model.
+FIT_PARAMETERS: dict[str, FitParameter] = fit_parameters()
+
+
+def _field_comment(params: BrakeParams, name: str) -> str:
+    """Meaning and unit of a parameter field, as its model declares them."""
+    for part in (params.pneumatic, params.friction):
+        declared = specs(type(part))
+        if name in declared:
+            return declared[name].doc
+    raise KeyError(name)
+
+
+def parse_fit(text: str | Sequence[str], model: str = brakes.DEFAULT_MODEL
+              ) -> list[FitParameter]:
     """Parse the parameters to fit.
 
     Parameters
     ----------
     text : str or sequence of str
         Comma-separated names, short (``t_app``) or field names (``t_app_s``).
+    model : str, optional
+        Brake model whose parameters may be named (default: the paper's).
 
     Returns
     -------
@@ -133,16 +142,17 @@ def parse_fit(text: str | Sequence[str]) -> list[FitParameter]:
         An unknown name, or none at all.
     """
     names = text.split(",") if isinstance(text, str) else list(text)
-    by_field = {p.field: p for p in FIT_PARAMETERS.values()}
+    known = fit_parameters(model)
+    by_field = {p.field: p for p in known.values()}
     out: list[FitParameter] = []
     for raw in names:
         name = raw.strip()
         if not name:
             continue
-        p = FIT_PARAMETERS.get(name) or by_field.get(name)
+        p = known.get(name) or by_field.get(name)
         if p is None:
             raise InputError("command line", "--fit", f"unknown parameter {name!r}; choose from "
-                             f"{', '.join(FIT_PARAMETERS)}")
+                             f"{', '.join(known)}")
         if p not in out:
             out.append(p)
     if not out:
@@ -337,8 +347,8 @@ def _run_chunk(chunk) -> list[tuple[float, str | None]]:
             out.append((d, None))
         except SimulationError as exc:
             # a trial point the integrator cannot handle: the optimiser rejects it
-            values = ", ".join(f"{k}={getattr(params, k):.6g}" for k in
-                               ("t_app_s", "v_air_m_s", "t_fill_s", "k0", "k_loco", "mu_eff"))
+            values = ", ".join(f"{p.field}={getattr(params, p.field):.6g}"
+                               for p in fit_parameters(params.model).values())
             out.append((math.nan, f"{consist.name} from {speed:g} km/h with {values}: {exc}"))
     return out
 
@@ -571,7 +581,8 @@ def calibrate(targets: Sequence[Target], fit: Sequence[FitParameter | str],
     """Fit brake parameters to reference stopping distances.
 
     Minimises ``sum(((S_sim - S_ref) / S_ref)^2)`` over the targets, within the physical
-    bounds of :data:`FIT_PARAMETERS`, by the trust-region reflective method.
+    bounds the brake model's ``FITTABLE`` declares (see :func:`fit_parameters`), by the
+    trust-region reflective method.
 
     Parameters
     ----------
@@ -612,9 +623,10 @@ def calibrate(targets: Sequence[Target], fit: Sequence[FitParameter | str],
 
     from ..simulator import SimulationError
 
-    fit = [p if isinstance(p, FitParameter) else parse_fit(p)[0] for p in fit]
-    targets = list(targets)
     start = start or load_brake_params()
+    # names resolved against the start's brake model: its FITTABLE gives fields and bounds
+    fit = parse_fit([p.name if isinstance(p, FitParameter) else p for p in fit], start.model)
+    targets = list(targets)
     lut = lut or load_coupler_lut()
     lower = np.array([p.lower for p in fit])
     upper = np.array([p.upper for p in fit])
@@ -922,8 +934,14 @@ def parameter_file_text(cal: Calibration, command: str) -> str:
     for w in cal.warnings:
         head += textwrap.wrap(f"warning: {w}", 98, initial_indent="# ",
                               subsequent_indent="#   ")
-    body = []
-    for name in ("t_app_s", "v_air_m_s", "t_fill_s", "k0", "k_loco", "mu_eff", "t_release_s"):
-        value = f"{float(getattr(cal.params, name)):.{WRITE_DIGITS}g}"
-        body.append(f"{name + ':':<13} {value:<10} # {_FIELD_COMMENTS[name]}")
+    # every field of the model, so that the file alone reproduces the parameters
+    params = cal.params
+    body = [] if params.model == brakes.DEFAULT_MODEL else [f"model: {params.model}"]
+    names = [*specs(type(params.pneumatic)), *specs(type(params.friction))]
+    width = max(len(n) for n in names) + 2
+    for name in names:
+        value = getattr(params, name)
+        value = (str(value).lower() if isinstance(value, bool)
+                 else f"{float(value):.{WRITE_DIGITS}g}")
+        body.append(f"{name + ':':<{width}} {value:<10} # {_field_comment(params, name)}")
     return "\n".join(head + body) + "\n"
