@@ -1,1 +1,1 @@
-"""MCAP recording in rosbag2 layout: writer, reader, recovery (layout and modules: :mod:`.layout`)."""
+"""MCAP recording in rosbag2 layout: writer, reader, recovery (see :mod:`.layout`)."""

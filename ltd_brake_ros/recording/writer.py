@@ -1,4 +1,4 @@
-"""Writing a recording: :class:`BagWriter`, streaming and crash tolerant (layout: :mod:`.layout`)."""
+"""Writing a recording: :class:`BagWriter`, streaming, crash tolerant (see :mod:`.layout`)."""
 from __future__ import annotations
 
 import math

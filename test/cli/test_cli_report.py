@@ -18,12 +18,6 @@ def folder(tmp_path_factory):
     return path
 
 
-def one_line_error(capsys, verb: str) -> str:
-    err = capsys.readouterr().err
-    assert err.startswith(f"ltd-brake {verb}: error:") and err.count("\n") == 1, err
-    assert "Traceback" not in err
-    return err
-
 
 def test_report_prints_json_and_writes_plots_and_csv(folder, tmp_path, capsys):
     assert main(["report", str(folder), "--out", str(tmp_path / "out"), "--csv", "--json"]) == 0
@@ -41,21 +35,21 @@ def test_report_prints_json_and_writes_plots_and_csv(folder, tmp_path, capsys):
     (lambda d: (d / "notes.mcap").write_text("not a recording") and d / "notes.mcap",
      ["RUN", "not an MCAP file"]),
 ])
-def test_report_of_what_is_not_a_recording_is_one_line(tmp_path, capsys, make, words):
+def test_report_of_what_is_not_a_recording_is_one_line(tmp_path, make, words, one_line_error):
     assert main(["report", str(make(tmp_path))]) == 2
-    err = one_line_error(capsys, "report")
+    err = one_line_error("report")
     for w in words:
         assert w in err
 
 
-def test_report_into_an_unwritable_place_is_one_line(folder, tmp_path, capsys):
+def test_report_into_an_unwritable_place_is_one_line(folder, tmp_path, one_line_error):
     blocker = tmp_path / "file"
     blocker.write_text("")
     assert main(["report", str(folder), "--out", str(blocker / "sub")]) == 2
-    assert "--out" in one_line_error(capsys, "report")
+    assert "--out" in one_line_error("report")
 
 
-def test_recover_rewrites_a_cut_recording(folder, tmp_path, capsys):
+def test_recover_rewrites_a_cut_recording(folder, tmp_path, capsys, one_line_error):
     data = (folder / "run_0.mcap").read_bytes()
     cut = tmp_path / "killed.mcap"
     cut.write_bytes(data[: len(data) * 2 // 3])
@@ -65,6 +59,6 @@ def test_recover_rewrites_a_cut_recording(folder, tmp_path, capsys):
     assert (tmp_path / "killed_recovered" / "metadata.yaml").is_file()
     # the destination now holds a bag: a second recovery there is refused
     assert main(["recover", str(cut), str(tmp_path / "killed_recovered")]) == 2
-    assert "DST" in one_line_error(capsys, "recover")
+    assert "DST" in one_line_error("recover")
     assert main(["recover", str(tmp_path / "missing")]) == 2
-    assert "SRC" in one_line_error(capsys, "recover")
+    assert "SRC" in one_line_error("recover")
