@@ -38,13 +38,14 @@ from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.signals import SignalHandlerOptions  # noqa: E402
 
 from ltd_brake_ros.inputs import consist_from_mapping  # noqa: E402
+from ltd_brake_ros.plant.runner import PlantRunner  # noqa: E402
 from ltd_brake_ros.ros.sim_node import SimNode  # noqa: E402
 
 LONG_TRAIN = {"name": "E402B + 150 Shimmns (80 t)",
               "vehicles": [{"type": "E402B"}, {"type": "Shimmns", "count": 150, "mass_t": 80.0}]}
 
 
-def run_node(context: Context, overrides: dict, wall_s: float) -> tuple[SimNode, float]:
+def run_node(context: Context, overrides: dict, wall_s: float) -> tuple[PlantRunner, float]:
     """Run a node until it finishes (``max_sim_time_s``) or ``wall_s`` elapse.
 
     Parameters
@@ -57,8 +58,8 @@ def run_node(context: Context, overrides: dict, wall_s: float) -> tuple[SimNode,
 
     Returns
     -------
-    node : SimNode
-        The stopped node (statistics and ``failure`` still readable).
+    runner : PlantRunner
+        The stopped node's plant (statistics and ``failure`` still readable).
     elapsed_s : float
         Wall time from start to finish [s].
     """
@@ -68,14 +69,15 @@ def run_node(context: Context, overrides: dict, wall_s: float) -> tuple[SimNode,
     executor.add_node(node)
     start = time.monotonic()
     node.start()
-    while time.monotonic() - start < wall_s and not node.finished.is_set() \
-            and node.failure is None:
+    runner = node.runner
+    while time.monotonic() - start < wall_s and not runner.finished.is_set() \
+            and runner.failure is None:
         executor.spin_once(timeout_sec=0.05)
     elapsed = time.monotonic() - start
     executor.remove_node(node)
     executor.shutdown()
     node.close()
-    return node, elapsed
+    return runner, elapsed
 
 
 def main() -> None:
@@ -100,17 +102,17 @@ def main() -> None:
         for label, consist, speed, n in trains:
             base = {"consist": consist, "initial_speed_kmh": speed, "chunk_s": 0.02,
                     "auto_brake_at_s": 0.0}
-            node, _ = run_node(context, base | {"real_time_factor": 1.0}, args.seconds)
-            late_ms = np.array(node.stats.lateness_s) * 1e3
-            node0, wall = run_node(context, base | {"real_time_factor": 0.0,
-                                                   "max_sim_time_s": args.sim_seconds},
-                                   wall_s=600.0)
-            for run in (node, node0):
+            paced, _ = run_node(context, base | {"real_time_factor": 1.0}, args.seconds)
+            late_ms = np.array(paced.stats.lateness_s) * 1e3
+            fast, wall = run_node(context, base | {"real_time_factor": 0.0,
+                                                  "max_sim_time_s": args.sim_seconds},
+                                  wall_s=600.0)
+            for run in (paced, fast):
                 if run.failure:
                     raise SystemExit(f"{label}: the simulation failed: {run.failure}")
-            rows.append((label, n, node.stats.chunks, np.percentile(late_ms, 50),
-                         np.percentile(late_ms, 99), late_ms.max(), node.stats.overruns,
-                         node0.sim_time_s / wall))
+            rows.append((label, n, paced.stats.chunks, np.percentile(late_ms, 50),
+                         np.percentile(late_ms, 99), late_ms.max(), paced.stats.overruns,
+                         fast.sim_time_s / wall))
     rclpy.try_shutdown(context=context)
 
     print(f"sim_node pacing, chunk 0.02 s, emergency brake at t = 0; real_time_factor 1 for "

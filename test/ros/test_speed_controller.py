@@ -26,7 +26,7 @@ from std_msgs.msg import Float64, Float64MultiArray  # noqa: E402
 
 from ltd_brake_ros.recording.bag import read_bag  # noqa: E402
 
-EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "speed_controller.py"
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "speed_controller.py"
 NS = "/speed_control"
 CHUNK_S = 0.1            # the control period: one ~/step advances one chunk
 DURATION_S = 150.0       # simulated

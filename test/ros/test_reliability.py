@@ -519,18 +519,18 @@ def test_simulator_failure_finishes_the_recording_and_reset_starts_a_new_one(
     name = "/failing/sim_node"
     try:
         node.start()
-        probe.spin_until(lambda: node.sim_time_s > 2.0, 30, "the free-running plant")
+        probe.spin_until(lambda: node.runner.sim_time_s > 2.0, 30, "the free-running plant")
 
         def diverge(*args, **kwargs):
             raise SimulationError("forced: Newton iteration did not converge")
 
-        monkeypatch.setattr(node._sim, "advance", diverge)
-        probe.spin_until(lambda: node.failure is not None, 10, "the failure")
-        failed_at = node.sim_time_s
+        monkeypatch.setattr(node.simulator, "advance", diverge)
+        probe.spin_until(lambda: node.runner.failure is not None, 10, "the failure")
+        failed_at = node.runner.sim_time_s
         probe.spin_until(lambda: (folder / "metadata.yaml").is_file(), 10,
                          "the recording to be finished")
         probe.spin_for(1.5)
-        assert node.sim_time_s == failed_at, "the plant kept advancing after the failure"
+        assert node.runner.sim_time_s == failed_at, "the plant kept advancing after the failure"
         # reported: an ERROR on /diagnostics and in the log
         errors = [m for t, m in seen if t == "/diagnostics"
                   and m.status[0].level == DiagnosticStatus.ERROR]
@@ -549,8 +549,8 @@ def test_simulator_failure_finishes_the_recording_and_reset_starts_a_new_one(
         monkeypatch.undo()
         reply = probe.call(Trigger, f"{name}/reset", Trigger.Request())
         assert reply.success, reply.message
-        probe.spin_until(lambda: node.sim_time_s > 1.0, 30, "the plant after ~/reset")
-        assert node.failure is None
+        probe.spin_until(lambda: node.runner.sim_time_s > 1.0, 30, "the plant after ~/reset")
+        assert node.runner.failure is None
         second = tmp_path / "failing_2"
         assert (second / "failing_2_0.mcap").is_file(), "~/reset did not start a new bag"
     finally:

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from conftest import RosProbe, executable
+from node_helpers import chunks_from_log, node_argv
 
 pytestmark = pytest.mark.ros
 
@@ -35,7 +36,7 @@ from ltd_brake_ros.studies import runs  # noqa: E402
 from ltd_brake_ros.inputs import get_scenario  # noqa: E402
 from ltd_brake_ros.simulator import SimulationError, Simulator  # noqa: E402
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 ARRAYS = {"vehicles/speed": "vehicle", "vehicles/position": "vehicle",
           "vehicles/brake_force": "vehicle", "couplers/force": "coupler"}
 
@@ -43,11 +44,8 @@ ARRAYS = {"vehicles/speed": "vehicle", "vehicles/position": "vehicle",
 def start_node(processes, ns: str, *params: str, name: str | None = None,
                ros_args: tuple[str, ...] = ()):
     """Start the installed sim_node in namespace ``ns`` with its /clock moved under ``ns``."""
-    argv = [executable("sim_node"), "--ros-args", *ros_args, "-r", f"__ns:={ns}",
-            "-r", f"/clock:={ns}/clock"]
-    for p in params:
-        argv += ["-p", p]
-    return processes.start(*argv, name=name or ns.strip("/"))
+    return processes.start(*node_argv(ns, *params, ros_args=ros_args),
+                           name=name or ns.strip("/"))
 
 
 def diagnostics(probe: RosProbe, node: str) -> dict[str, str]:
@@ -280,13 +278,14 @@ def test_bad_start_up_parameters_end_with_one_clear_line(processes, tmp_path):
         assert len(out.splitlines()) == 1, out
         assert f"parameter {name}" in out and cases[name][1] in out, out
     assert finishing.wait(60) == 0, finishing.output()
-    assert "max_sim_time_s" in finishing.output()
+    assert "max_sim_time_s = 0.5 s reached" in finishing.output()
+    assert chunks_from_log(finishing.output()) == 25  # 0.5 s in chunks of 0.02 s, exactly
 
 
 def test_parameter_file_declares_every_parameter_with_its_default():
     import yaml
 
-    from ltd_brake_ros.ros.sim_node import PARAMETERS
+    from ltd_brake_ros.ros.params import PARAMETERS
 
     listed = yaml.safe_load((REPO / "config" / "sim_node.yaml").read_text())
     values = listed["sim_node"]["ros__parameters"]
@@ -298,6 +297,51 @@ def test_parameter_file_declares_every_parameter_with_its_default():
             assert d.floating_point_range or d.integer_range, f"{p.name} has no range"
     writable = {p.name for p in PARAMETERS if not p.read_only}
     assert writable == {"real_time_factor", "steps_per_call"}
+
+
+# --------------------------------------------------------------------------- wiring (in-process)
+
+
+@pytest.mark.parametrize("publish_clock", [True, False])
+def test_topics_qos_and_services_are_wired_as_documented(ros_context, publish_clock):
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
+    from std_msgs.msg import Float64
+
+    from ltd_brake_ros.ros.sim_node import SimNode
+
+    node = SimNode(context=ros_context, namespace="/wired", parameter_overrides=[
+        Parameter("lockstep", value=True), Parameter("publish_clock", value=publish_clock)])
+    try:
+        # state topics lossless for a reader that keeps up, /clock only the newest, commands
+        # deep; nothing latched
+        outputs = {f"/wired/{topic}": (Float64MultiArray, 10) for topic in
+                   ("vehicles/speed", "vehicles/position", "vehicles/brake_force",
+                    "vehicles/traction_force", "couplers/force")}
+        outputs["/diagnostics"] = (DiagnosticArray, 10)
+        if publish_clock:
+            outputs["/clock"] = (Clock, 1)
+        inputs = {"/wired/brake_command": Bool, "/wired/brake_demand": Float64,
+                  "/wired/traction_command": Float64}
+        # rclpy's own /rosout and /parameter_events publishers are not the node's outputs
+        publishers = {p.topic_name: p for p in node.publishers
+                      if p.topic_name not in ("/rosout", "/parameter_events")}
+        assert set(publishers) == set(outputs)
+        endpoints = [(publishers[t], typ, depth) for t, (typ, depth) in outputs.items()]
+        subscriptions = {s.topic_name: s for s in node.subscriptions
+                         if s.topic_name != "/parameter_events"}
+        assert set(subscriptions) == set(inputs)
+        endpoints += [(subscriptions[t], typ, 1000) for t, typ in inputs.items()]
+        for endpoint, msg_type, depth in endpoints:
+            q = endpoint.qos_profile
+            assert endpoint.msg_type is msg_type, endpoint.topic_name
+            assert (q.history, q.depth, q.reliability, q.durability) == (
+                HistoryPolicy.KEEP_LAST, depth, ReliabilityPolicy.RELIABLE,
+                DurabilityPolicy.VOLATILE), endpoint.topic_name
+        services = {s.service_name: s.srv_type for s in node.services}
+        for name, srv_type in (("reset", Trigger), ("pause", SetBool), ("step", Trigger)):
+            assert services.get(f"/wired/sim_node/{name}") is srv_type, name
+    finally:
+        node.close()
 
 
 # --------------------------------------------------------------------------- faults (in-process)
@@ -323,7 +367,7 @@ def test_simulation_error_is_reported_and_reset_recovers(ros_context, probe, mon
         def diverge(*args, **kwargs):
             raise SimulationError("forced: Newton iteration did not converge")
 
-        monkeypatch.setattr(node._sim, "advance", diverge)
+        monkeypatch.setattr(node.simulator, "advance", diverge)
         reply = probe.call(Trigger, f"{name}/step", Trigger.Request())
         assert not reply.success and "forced" in reply.message
         errors = [msg for topic, msg, _ in seen if topic == "/diagnostics"
@@ -335,7 +379,7 @@ def test_simulation_error_is_reported_and_reset_recovers(ros_context, probe, mon
         assert probe.call(Trigger, f"{name}/reset", Trigger.Request()).success
         reply = probe.call(Trigger, f"{name}/step", Trigger.Request())
         assert reply.success, reply.message
-        assert node.sim_time_s == pytest.approx(0.02)
+        assert node.runner.sim_time_s == pytest.approx(0.02)
         topics = {topic for topic, _, inbound in seen if not inbound}
         assert {"/inproc/vehicles/speed", "/inproc/couplers/force", "/clock",
                 "/diagnostics"} <= topics

@@ -1,0 +1,228 @@
+"""The nodes' parameters: one table with defaults, types, ranges and descriptions, and what
+sim_node's parameters resolve to (run spec, simulator, plant settings)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Any, Iterable
+
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                ParameterType, SetParametersResult)
+from rclpy.exceptions import InvalidParameterTypeException, ParameterException
+
+from ..plant.settings import MAX_REAL_TIME_FACTOR, PlantSettings, StartupError
+from ..inputs import InputError
+from ..run_spec import RunSpec, RunSpecError, resolve_run_spec
+from ..simulator import SimulationError, Simulator
+
+__all__ = ["ParamSpec", "PARAMETERS", "StartupError", "declare_parameters",
+           "load_plant_inputs", "build_simulator", "plant_settings", "check_run_time_change"]
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """Declaration of one node parameter.
+
+    Attributes
+    ----------
+    name : str
+        Parameter name.
+    default : bool, int, float or str
+        Default value; its Python type is the parameter type.
+    description : str
+        Shown by ``ros2 param describe`` (units in brackets).
+    read_only : bool
+        Structural: fixed once the node runs.
+    lo, hi : float or None
+        Accepted range (inclusive), for numbers.
+    """
+
+    name: str
+    default: Any
+    description: str
+    read_only: bool = True
+    lo: float | None = None
+    hi: float | None = None
+
+    def descriptor(self) -> ParameterDescriptor:
+        """The ROS parameter descriptor (type, description, range, read-only flag)."""
+        types = {bool: ParameterType.PARAMETER_BOOL, int: ParameterType.PARAMETER_INTEGER,
+                 float: ParameterType.PARAMETER_DOUBLE, str: ParameterType.PARAMETER_STRING}
+        d = ParameterDescriptor(name=self.name, type=types[type(self.default)],
+                                description=self.description, read_only=self.read_only)
+        if isinstance(self.default, float) and self.lo is not None:
+            d.floating_point_range = [FloatingPointRange(from_value=float(self.lo),
+                                                         to_value=float(self.hi), step=0.0)]
+        elif isinstance(self.default, int) and not isinstance(self.default, bool) \
+                and self.lo is not None:
+            d.integer_range = [IntegerRange(from_value=int(self.lo), to_value=int(self.hi),
+                                            step=1)]
+        return d
+
+
+#: Every parameter of sim_node, with its default (mirrored in ``config/sim_node.yaml``).
+PARAMETERS = (
+    ParamSpec("consist", "scenario_6",
+              "Consist YAML file, or a scenario of config/scenarios.yaml given as text "
+              "(scenario_6 or '6'; default: the paper's scenario 6)"),
+    ParamSpec("initial_speed_kmh", -1.0,
+              "Initial speed of every vehicle [km/h]; -1 = the scenario's speed "
+              "(a value is required when consist is a file)", lo=-1.0, hi=400.0),
+    ParamSpec("brake_params_file", "",
+              "Brake-parameter YAML file; empty = the shipped brake_params/paper.yaml"),
+    ParamSpec("coupler_lut_file", "",
+              "Coupler look-up-table YAML file; empty = the shipped couplers/buffer_hook_pugi.yaml"),
+    ParamSpec("chunk_s", 0.02,
+              "Simulated time advanced and published per chunk [s]", lo=0.001, hi=10.0),
+    ParamSpec("real_time_factor", 1.0,
+              "Simulated seconds per wall second: 1 = wall-clock pace, 2 = twice as fast, "
+              "0 = as fast as possible; not used in lock-step mode; changeable at run time",
+              read_only=False, lo=0.0, hi=MAX_REAL_TIME_FACTOR),
+    ParamSpec("lockstep", False,
+              "Advance only when ~/step is called (steps_per_call chunks per call)"),
+    ParamSpec("steps_per_call", 1,
+              "Chunks advanced and published per ~/step call", read_only=False, lo=1, hi=100_000),
+    ParamSpec("publish_clock", True,
+              "Publish /clock after every chunk, so controllers can use use_sim_time:=true"),
+    ParamSpec("auto_brake_at_s", -1.0,
+              "Apply the emergency brake by itself at the first chunk boundary at or after "
+              "this simulated time [s]; -1 = never", lo=-1.0, hi=1e6),
+    ParamSpec("max_sim_time_s", -1.0,
+              "Shut down cleanly once the simulated time reaches this [s]; -1 = run until "
+              "signalled", lo=-1.0, hi=1e7),
+    ParamSpec("shutdown_after_stop_s", -1.0,
+              "Shut down cleanly this long after the train has stopped [s simulated]; "
+              "-1 = keep running", lo=-1.0, hi=1e6),
+    ParamSpec("track_file", "",
+              "Track profile (YAML or CSV: chainage -> gradient [per mille], curve radius [m]); "
+              "empty = level straight track"),
+    ParamSpec("start_chainage_m", 0.0,
+              "Chainage of the head's front at t = 0 [m] (overrides the track file's)",
+              lo=-1e7, hi=1e7),
+    ParamSpec("record", False,
+              "Record every published and received message to an MCAP bag folder"),
+    ParamSpec("record_dir", "",
+              "Bag folder for record:=true; empty = runs/run_<date>-<time> in the working "
+              "directory; after ~/reset a new folder <record_dir>_2, _3, ... is started"),
+)
+
+_TYPE_WORDS = {bool: "true or false", int: "a whole number", float: "a number with a decimal "
+               "point (e.g. 80.0)", str: "text (quote numbers, e.g. consist:=scenario_6)"}
+
+
+def declare_parameters(node, specs: Iterable[ParamSpec] = PARAMETERS) -> dict[str, Any]:
+    """Declare ``specs`` on ``node`` and return their values.
+
+    Raises
+    ------
+    StartupError
+        A given value has the wrong type or is out of range (naming the parameter).
+    """
+    values = {}
+    for spec in specs:
+        try:
+            values[spec.name] = node.declare_parameter(spec.name, spec.default,
+                                                       spec.descriptor()).value
+        except InvalidParameterTypeException:
+            raise StartupError(spec.name, f"wrong type, expected "
+                               f"{_TYPE_WORDS[type(spec.default)]}") from None
+        except ParameterException as exc:
+            reason = str(exc).split("Reason: ", 1)[-1].removesuffix(f": {spec.name}")
+            raise StartupError(spec.name, reason) from None
+    return values
+
+
+#: Node parameter of each run-spec input, for error messages.
+RUN_SPEC_PARAMETERS = {"consist": "consist", "speed_kmh": "initial_speed_kmh",
+                       "brake_params": "brake_params_file", "coupler_lut": "coupler_lut_file",
+                       "track": "track_file"}
+
+
+def load_plant_inputs(consist: str, initial_speed_kmh: float, brake_params_file: str = "",
+                      coupler_lut_file: str = "", track_file: str = "",
+                      start_chainage_m: float = 0.0) -> RunSpec:
+    """Resolve and validate the node's input parameters (see :func:`resolve_run_spec`).
+
+    Parameters
+    ----------
+    consist : str
+        Consist YAML file, or scenario name/number (``scenario_6``, ``6``).
+    initial_speed_kmh : float
+        Initial speed [km/h]; negative takes the scenario's speed.
+    brake_params_file, coupler_lut_file, track_file : str
+        Files; empty strings take the shipped defaults (level straight track).
+    start_chainage_m : float
+        Chainage of the head's front at t = 0 [m].
+
+    Returns
+    -------
+    RunSpec
+
+    Raises
+    ------
+    StartupError
+        Naming the parameter and the reason.
+    """
+    try:
+        return resolve_run_spec(consist, speed_kmh=initial_speed_kmh,
+                                params_file=brake_params_file, lut_file=coupler_lut_file,
+                                track_file=track_file, start_chainage_m=start_chainage_m)
+    except RunSpecError as exc:
+        raise StartupError(RUN_SPEC_PARAMETERS[exc.input_name], exc.detail) from None
+
+
+def build_simulator(spec: RunSpec, chunk_s: float) -> Simulator:
+    """The simulator of ``spec``, its compiled kernel loaded (one chunk run, then reset).
+
+    Loading the kernel here keeps it from making the first chunk late.
+
+    Raises
+    ------
+    StartupError
+        The inputs do not make a train (naming ``initial_speed_kmh`` or ``consist``).
+    """
+    try:
+        sim = Simulator(spec.consist, spec.speed_kmh, spec.params, spec.lut, spec.track)
+    except InputError as exc:
+        name = "initial_speed_kmh" if exc.source == "speed_kmh" else "consist"
+        raise StartupError(name, str(exc)) from None
+    try:
+        sim.advance(chunk_s)
+    except SimulationError:
+        pass  # the run meets it again and reports it
+    sim.reset()
+    return sim
+
+
+def plant_settings(values: dict[str, Any]) -> PlantSettings:
+    """The plant runtime's settings from the declared parameter values."""
+    return PlantSettings(**{f.name: values[f.name] for f in fields(PlantSettings)})
+
+
+def check_run_time_change(params, real_time_factor: float) -> SetParametersResult:
+    """Accept or refuse new values of the run-time parameters, with a reason.
+
+    Parameters
+    ----------
+    params : list of rclpy.parameter.Parameter
+    real_time_factor : float
+        The value in force (named in the refusal).
+
+    Returns
+    -------
+    SetParametersResult
+    """
+    for p in params:
+        if p.name == "real_time_factor":
+            v = p.value
+            if not (isinstance(v, float) and math.isfinite(v)
+                    and 0.0 <= v <= MAX_REAL_TIME_FACTOR):
+                return SetParametersResult(
+                    successful=False,
+                    reason=f"real_time_factor must be a number from 0 (as fast as possible) "
+                           f"to {MAX_REAL_TIME_FACTOR:g}, got {v!r}; keeping {real_time_factor:g}")
+        elif p.name == "steps_per_call" and not (isinstance(p.value, int) and p.value >= 1):
+            return SetParametersResult(
+                successful=False,
+                reason=f"steps_per_call must be a whole number >= 1, got {p.value!r}")
+    return SetParametersResult(successful=True)
