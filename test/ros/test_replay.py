@@ -4,15 +4,17 @@ from __future__ import annotations
 import threading
 import time
 
+import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Bool
 
-from bag_helpers import array_msg
 from conftest import executable
 from ltd_brake_ros.recording.bag import BagWriter, parse_qos_profiles, qos_profiles_yaml, read_bag
-from ltd_brake_ros.ros.replay_node import Player, qos_from_profile
+from ltd_brake_ros.recording.player import Player
+from ltd_brake_ros.recording.qos import qos_from_profile
+from ltd_brake_ros.ros.messages import array_msg
 
 SPEED, CMD = "/rt/vehicles/speed", "/rt/brake_command"
 
@@ -25,7 +27,8 @@ def bag(tmp_path_factory):
         w.add_topic(CMD, "std_msgs/msg/Bool", qos_profiles_yaml(depth=5))
         for i in range(40):
             t = 5_000_000_000 + i * 20_000_000  # 50 Hz of recorded time
-            w.write(SPEED, serialize_message(array_msg([i * 0.5] * (1 + i % 5), "vehicle")), t)
+            w.write(SPEED, serialize_message(array_msg("vehicle", np.full(1 + i % 5, i * 0.5))),
+                    t)
             if i % 8 == 0:
                 w.write(CMD, serialize_message(Bool(data=i >= 16)), t)
     return folder
@@ -79,18 +82,36 @@ def test_player_start_paused_then_resumed(bag):
 def test_player_clock_arithmetic_pause_and_rate(bag):
     now = [100.0]
     player = Player(bag, None, rate=2.0, monotonic=lambda: now[0])
-    player._base_log, player._base_wall = 1_000, 100.0
     now[0] = 101.0
-    assert player._position(now[0]) == pytest.approx(1_000 + 2e9)
+    assert player.position_ns() == pytest.approx(2e9)
     player.pause(True)
     now[0] = 111.0  # ten paused seconds do not count
     player.pause(False)
-    assert player._position(now[0]) == pytest.approx(1_000 + 2e9)
+    assert player.position_ns() == pytest.approx(2e9)
     player.set_rate(0.5)
     now[0] = 113.0
-    assert player._position(now[0]) == pytest.approx(1_000 + 2e9 + 1e9)
+    assert player.position_ns() == pytest.approx(2e9 + 1e9)
     with pytest.raises(ValueError):
         player.set_rate(-1.0)
+    with pytest.raises(ValueError):
+        Player(bag, None, rate=-1.0)
+
+
+def test_player_waits_for_each_message_on_the_wall_clock(bag):
+    """Recorded at 50 Hz, played at rate 2: each message 10 ms of wall time after the last."""
+    now = [100.0]
+    got = []
+
+    def wait(event, timeout_s):  # the player's only way to let time pass
+        now[0] += timeout_s
+        return False
+
+    player = Player(bag, lambda *m: got.append((now[0], m[2])), rate=2.0,
+                    monotonic=lambda: now[0], wait=wait)
+    assert player.run() == 45
+    first_wall, first_ns = got[0]
+    for wall, log_ns in got:
+        assert wall == pytest.approx(first_wall + (log_ns - first_ns) * 1e-9 / 2.0, abs=1e-9)
 
 
 def test_qos_round_trip_through_recorded_profile():
