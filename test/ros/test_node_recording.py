@@ -23,12 +23,14 @@ rclpy = pytest.importorskip("rclpy")
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from mcap.reader import make_reader  # noqa: E402
 from mcap_ros2.decoder import DecoderFactory  # noqa: E402
+from rclpy.duration import Duration  # noqa: E402
+from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from rclpy.serialization import deserialize_message  # noqa: E402
 from rosbags.rosbag2 import Reader as RosbagsReader  # noqa: E402
 from rosbags.typesys import Stores, get_typestore  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from std_msgs.msg import Bool, Float64, Float64MultiArray  # noqa: E402
-from std_srvs.srv import Trigger  # noqa: E402
+from std_srvs.srv import SetBool, Trigger  # noqa: E402
 
 from ltd_brake_ros.recording.bag import bag_info  # noqa: E402
 from ltd_brake_ros.inputs import get_scenario  # noqa: E402
@@ -233,25 +235,53 @@ def test_recorded_run_round_trips_through_independent_readers_and_reports_like_o
 
 @pytest.mark.slow
 def test_long_free_running_record_loses_nothing(processes, probe, tmp_path):
-    """Four minutes of simulated time as fast as possible, commands arriving meanwhile."""
+    """Four minutes of simulated time as fast as possible, commands arriving meanwhile.
+
+    The order is explicit: the probe's publisher keeps every command until the node's reader
+    has acknowledged it; only once the node reports that it handled all of them and simulated
+    four minutes does the probe pause it (between two chunks) and end it with SIGINT, which
+    finishes the bag. Ending at max_sim_time_s instead would race the commands (at full speed
+    the plant can get there before the last one arrives), and a signal alone could land
+    between two topics of a chunk. That max_sim_time_s ends after exactly its chunks is
+    tested in the plant and by the start-up test.
+    """
     ns, node = "/long", "/long/sim_node"
     folder = tmp_path / "long"
     sim_s = 240.0
     probe.subscribe("/diagnostics", DiagnosticArray, raw=True, depth=DEEP)
-    proc = _start(processes, ns, folder, "real_time_factor:=0.001", f"max_sim_time_s:={sim_s}")
+    proc = _start(processes, ns, folder, "real_time_factor:=0.001")
     _wait_until_heard(probe, ns, node, proc)
+    values = [round(0.001 * i, 3) for i in range(1, 201)]
+    commands = probe.node.create_publisher(
+        Float64, f"{ns}/brake_demand",
+        QoSProfile(depth=len(values), reliability=ReliabilityPolicy.RELIABLE))
+    probe.spin_until(lambda: commands.get_subscription_count() > 0, 20,
+                     f"the node's subscription to {ns}/brake_demand")
     (switched,) = probe.set_parameters(node, real_time_factor=0.0)
     assert switched.successful, switched.reason
     # service-brake demands while the plant runs flat out: each one must be in the bag
-    values = [round(0.001 * i, 3) for i in range(1, 201)]
     for v in values:
-        probe.publish(f"{ns}/brake_demand", Float64(data=v))
+        commands.publish(Float64(data=v))
         probe.spin_for(0.002)
-    assert proc.wait(120) == 0, proc.output()
+    assert commands.wait_for_all_acked(Duration(seconds=30)), "the node did not take them all"
+
+    def report():
+        found = diagnostics_of([deserialize_message(d, DiagnosticArray)
+                                for d in probe.received["/diagnostics"][-3:]], node)
+        return found[-1] if found else {}
+    probe.spin_until(lambda: int(report().get("inputs_handled", -1)) == len(values)
+                     and float(report()["sim_time_s"]) >= sim_s, 120,
+                     f"the node to handle {len(values)} commands and simulate {sim_s:g} s")
+    assert report()["state"] == "running" and report()["brake_demand"] == "0.2"
+    reply = probe.call(SetBool, f"{node}/pause", SetBool.Request(data=True))
+    assert reply.success, reply.message
+    paused_at_s = float(reply.message.split("t = ")[1].split()[0])
+    assert proc.stop(signal.SIGINT) == 0, proc.output()
     probe.spin_for(0.5)
     out = proc.output()
+    assert "Traceback" not in out, out
     chunks = chunks_from_log(out)
-    assert chunks == round(sim_s / 0.02)
+    assert chunks == round(paused_at_s / 0.02) and chunks >= round(sim_s / 0.02)
 
     summary, recorded = read_mcap(folder)
     assert summary is not None
