@@ -23,6 +23,7 @@ retarding forces, positive.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -220,6 +221,8 @@ class SimulatorState:
         Brake commands issued at the head that some vehicle has yet to receive.
     stats : ndarray
         Counters, one :data:`~ltd_brake_ros.physics.kernel.STATS_DTYPE` record.
+    reported_out_of_range : ndarray of bool
+        Couplers whose excursion beyond their valid range has been reported.
     brake_command : tuple of (float, int)
         Brake level and kind last commanded.
     emergency : bool
@@ -232,8 +235,6 @@ class SimulatorState:
         Head displacement at that command [m].
     stop_time_s, stopping_distance_m : float or None
         When the train stopped [s] and the head's travel since the command [m].
-    reported_out_of_range : ndarray of bool
-        Couplers whose excursion beyond their valid range has been reported.
     failed : bool
         A step failed; only a reset recovers.
     """
@@ -244,6 +245,7 @@ class SimulatorState:
     brakes: brakes_module.BrakeState
     events: brakes_module.CommandEvents
     stats: np.ndarray
+    reported_out_of_range: np.ndarray
     brake_command: tuple = (0.0, EMERGENCY)
     emergency: bool = False
     traction_demand: float = 0.0
@@ -251,17 +253,14 @@ class SimulatorState:
     command_head_m: float = 0.0
     stop_time_s: float | None = None
     stopping_distance_m: float | None = None
-    reported_out_of_range: np.ndarray = None
     failed: bool = False
 
     def copy(self) -> "SimulatorState":
-        """An independent copy."""
-        return SimulatorState(self.time_s, self.last_step_s, self.kinematics.copy(),
-                              self.brakes.copy(), self.events.copy(), self.stats.copy(),
-                              self.brake_command, self.emergency, self.traction_demand,
-                              self.command_time_s, self.command_head_m, self.stop_time_s,
-                              self.stopping_distance_m, self.reported_out_of_range.copy(),
-                              self.failed)
+        """An independent copy (arrays copied)."""
+        return dataclasses.replace(
+            self, kinematics=self.kinematics.copy(), brakes=self.brakes.copy(),
+            events=self.events.copy(), stats=self.stats.copy(),
+            reported_out_of_range=self.reported_out_of_range.copy())
 
 
 class Simulator:
@@ -341,7 +340,7 @@ class Simulator:
         self._initial = SimulatorState(
             0.0, 0.0, kernel.KinematicState.initial(n, self.speed_kmh / KMH_PER_MS),
             self._brake_model.initial_state(self.model.brakes), brakes_module.CommandEvents.empty(),
-            kernel.new_stats(), reported_out_of_range=np.zeros(nc, bool))
+            kernel.new_stats(), np.zeros(nc, bool))
         self.reset()
 
     @staticmethod

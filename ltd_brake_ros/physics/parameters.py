@@ -98,3 +98,29 @@ def specs(params_type) -> dict[str, Spec]:
 def file_key(params_type, name: str) -> str:
     """Name of field ``name`` in a file."""
     return specs(params_type)[name].key or name
+
+
+def model_of(models: dict, params) -> Any:
+    """The model module of a family whose ``Params`` type ``params`` is.
+
+    Parameters
+    ----------
+    models : dict of str to module
+        A family's registry.
+    params : dataclass
+        A model's ``Params``.
+
+    Returns
+    -------
+    module
+
+    Raises
+    ------
+    TypeError
+        ``params`` belongs to no registered model.
+    """
+    for module in models.values():
+        if type(params) is module.Params:
+            return module
+    raise TypeError(f"{type(params).__name__} is not the Params of a registered model "
+                    f"({', '.join(models)})")

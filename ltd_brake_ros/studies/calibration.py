@@ -61,24 +61,16 @@ WRITE_DIGITS = 5
 
 @dataclass(frozen=True)
 class FitParameter:
-    """A brake parameter that can be fitted.
+    """A brake parameter that can be fitted: a short name and its model's ``FITTABLE`` entry.
 
     Attributes
     ----------
     name : str
         Short name used on the command line (``t_app``).
-    field : str
-        Field of the brake model's or the friction law's ``Params``, readable on
-        :class:`~ltd_brake_ros.inputs.BrakeParams` (``t_app_s``).
-    unit : str
-        Unit of the value.
-    lower, upper : float
-        Physical bounds of the fit.
-    scale : float
-        Typical magnitude: the fit works in ``value / scale`` and finite-difference steps are
-        relative to it.
-    meaning : str
-        One-line description for the help text.
+    field, unit, lower, upper, scale, meaning
+        As in :class:`~ltd_brake_ros.physics.parameters.Fittable`; ``field`` is readable on
+        :class:`~ltd_brake_ros.inputs.BrakeParams`, the fit works in ``value / scale`` and
+        takes finite-difference steps relative to it.
     """
 
     name: str

@@ -38,6 +38,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
+from .. import parameters
 from ..equations import jit
 from . import friction, linear_ramp, uic_empirical
 from .base import EMERGENCY, SERVICE, BrakeArrays, BrakeState, CommandEvents, CompileError
@@ -64,21 +65,8 @@ def advance(arrays, state, events, t0, t1):
 
 
 def model_of(params) -> Any:
-    """The registered model module whose ``Params`` type ``params`` is.
-
-    Parameters
-    ----------
-    params : dataclass
-        A model's ``Params``.
-
-    Returns
-    -------
-    module
-    """
-    for module in MODELS.values():
-        if type(params) is module.Params:
-            return module
-    raise TypeError(f"{type(params).__name__} is not the Params of a registered brake model")
+    """The registered brake model whose ``Params`` type ``params`` is (its module)."""
+    return parameters.model_of(MODELS, params)
 
 
 @dataclass(frozen=True, init=False)

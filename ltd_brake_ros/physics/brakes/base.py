@@ -8,6 +8,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..equations import centre_offsets_m
+
 #: Kinds of command events: an emergency application, or a service application/release.
 EMERGENCY, SERVICE = 0, 1
 
@@ -156,16 +158,17 @@ def released_state(n: int, extra_columns: int = 0) -> BrakeState:
                       np.zeros((n, extra_columns)))
 
 
-def head_vent_delay_s(distance_m: np.ndarray, t_app_s: float, v_air_m_s: float,
+def head_vent_delay_s(consist, t_app_s: float, v_air_m_s: float,
                       simultaneous: bool) -> np.ndarray:
     """Delay of each vehicle's brake after a command at the head, Eq. 5-6.
 
-    t_app + t_del, t_del = distance / v_air (0 when every vehicle is commanded at once).
+    t_app + t_del, t_del = distance / v_air from the head's centre to the vehicle's (0 when
+    every vehicle is commanded at once).
 
     Parameters
     ----------
-    distance_m : ndarray
-        Distance of each vehicle's centre behind the head's centre [m].
+    consist : Consist
+        The train, head first (vehicle lengths).
     t_app_s : float
         Delay from the command to the pressure rise at the head [s].
     v_air_m_s : float
@@ -178,4 +181,6 @@ def head_vent_delay_s(distance_m: np.ndarray, t_app_s: float, v_air_m_s: float,
     ndarray
         [s].
     """
-    return t_app_s + (0.0 * distance_m if simultaneous else distance_m / v_air_m_s)
+    centre = centre_offsets_m(np.array([v.length_m for v in consist.vehicles]))
+    distance = centre - centre[0]
+    return t_app_s + (0.0 * distance if simultaneous else distance / v_air_m_s)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..equations import centre_offsets_m, jit
+from ..equations import jit
 from ..parameters import Fittable, parameter
 from .base import BrakeArrays, head_vent_delay_s, released_state
 
@@ -80,12 +80,9 @@ def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  #
     BrakeArrays
         ``coef`` columns :data:`RATE_APPLY`, :data:`RATE_RELEASE` [N/s].
     """
-    lengths = np.array([v.length_m for v in consist.vehicles])
-    centre = centre_offsets_m(lengths)
-    delay = head_vent_delay_s(centre - centre[0], params.t_app_s, params.v_air_m_s,
-                              params.simultaneous)
+    delay = head_vent_delay_s(consist, params.t_app_s, params.v_air_m_s, params.simultaneous)
     fmax = np.ascontiguousarray(force_max_N, float)
-    coef = np.empty((lengths.size, 2))
+    coef = np.empty((fmax.size, 2))
     coef[:, RATE_APPLY] = fmax / params.t_fill_s
     coef[:, RATE_RELEASE] = fmax / params.t_release_s
     return BrakeArrays(ID, delay, fmax, coef)

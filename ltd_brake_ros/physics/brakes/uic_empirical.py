@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..equations import centre_offsets_m, jit
+from ..equations import jit
 from ..parameters import Fittable, parameter
 from .base import BrakeArrays, EMERGENCY, head_vent_delay_s, released_state
 
@@ -113,9 +113,7 @@ def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  #
         ``coef`` columns :data:`TAU_EMERGENCY`, :data:`TAU_SERVICE`, :data:`TAU_RELEASE`.
     """
     vs = consist.vehicles
-    centre = centre_offsets_m(np.array([v.length_m for v in vs]))
-    delay = head_vent_delay_s(centre - centre[0], params.t_app_s, params.v_air_m_s,
-                              params.simultaneous)
+    delay = head_vent_delay_s(consist, params.t_app_s, params.v_air_m_s, params.simultaneous)
     # brake position: G fills (and releases) slower; service applications scale alike
     in_g = np.array([v.brake_position == "G" for v in vs])
     fill = np.where(in_g, params.t_fill_G_s, params.t_fill_s)

@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from .. import parameters
 from ..equations import jit_inline
 from . import linear, lut_hysteresis
 from .base import CouplerArrays
@@ -81,21 +82,8 @@ def force_of(arrays: CouplerArrays, defl_m: float, rate_m_s: float) -> tuple[flo
 
 
 def model_of(params) -> Any:
-    """The registered model module whose ``Params`` type ``params`` is.
-
-    Parameters
-    ----------
-    params : dataclass
-        A coupler model's ``Params``.
-
-    Returns
-    -------
-    module
-    """
-    for module in MODELS.values():
-        if type(params) is module.Params:
-            return module
-    raise TypeError(f"{type(params).__name__} is not the Params of a registered coupler model")
+    """The registered coupler model whose ``Params`` type ``params`` is (its module)."""
+    return parameters.model_of(MODELS, params)
 
 
 def compile(params) -> CouplerArrays:  # noqa: A001 - the contract's name
