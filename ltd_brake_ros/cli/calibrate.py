@@ -6,7 +6,8 @@ import sys
 from pathlib import Path
 
 from ..inputs import InputError
-from ..studies.calibration import UIC_SPEED_KMH, parse_fit
+from ..physics.brakes import DEFAULT_MODEL
+from ..studies.calibration import UIC_SPEED_KMH, fit_parameters, parse_fit
 from .options import add_model_options, load_model, parse_scenarios, positive_int
 
 HELP = """\
@@ -25,14 +26,10 @@ targets:
           percentages help separate v_air (length-dependent) from t_app and t_fill.
   paper   the LTDPoliTo column of Tables 1-2 (the paper's own model), at 100 or 50 km/h.
 
-parameters (--fit; bounds of the fit):
-  t_app   [s]    application delay at the head             0 to 5
-  v_air   [m/s]  brake-pipe propagation speed (Eq. 6)       100 to 340
-  t_fill  [s]    brake-cylinder filling time (Eq. 7)        2 to 30
-  k0      [-]    scale of the block k factor (UIC 544-1)    > 0
-  k_loco  [-]    locomotive disc-brake k factor (Eq. 4)     > 0
-  mu_eff  [-]    locomotive disc friction (Eq. 10)          0 to 1
-  Parameters not fitted keep their --params values.
+parameters (--fit) of the {model} brake model, with the bounds of the fit:
+{parameters}
+  Parameters not fitted keep their --params values. A parameter file that names another
+  brake model (model: ...) offers that model's parameters.
 
 units: speeds in km/h, distances in m, times in s. The confidence intervals are 95 %,
 Student t with (targets - parameters) degrees of freedom, from (J^T J)^-1 s^2 at the optimum.
@@ -44,11 +41,17 @@ examples:
 """
 
 
+def _epilog() -> str:
+    rows = [f"  {p.name:<7} {'[' + p.unit + ']':<6} {f'{p.lower:g} to {p.upper:g}':<13} "
+            f"{p.meaning}" for p in fit_parameters(DEFAULT_MODEL).values()]
+    return EPILOG.format(model=DEFAULT_MODEL, parameters="\n".join(rows))
+
+
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Add the ``calibrate`` verb to ``ltd-brake`` (the verb contract: :mod:`ltd_brake_ros.cli`)."""
     p = subparsers.add_parser(
         "calibrate", help="fit brake parameters to UIC 544-1 or the paper's distances",
-        description=HELP, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+        description=HELP, epilog=_epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--target", choices=("uic", "paper"), default="uic",
                    help="reference distances: uic (UIC 544-1, 100 km/h only) or paper "
                         "(LTDPoliTo column); default uic")
@@ -74,19 +77,21 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
-def command_line(args: argparse.Namespace) -> str:
+def command_line(args: argparse.Namespace, fit) -> str:
     """The canonical ``ltd-brake calibrate`` command for parsed arguments.
 
     Parameters
     ----------
     args : argparse.Namespace
+    fit : list of FitParameter
+        The parameters fitted, as parsed from ``--fit``.
 
     Returns
     -------
     str
     """
     parts = ["ltd-brake calibrate", f"--target {args.target}", f"--speed-kmh {args.speed_kmh:g}",
-             "--fit " + ",".join(p.name for p in parse_fit(args.fit))]
+             "--fit " + ",".join(p.name for p in fit)]
     if args.scenarios:
         parts.append(f"--scenarios {args.scenarios}")
     parts += [f"--consist {c}" for c in args.consist or ()]
@@ -116,7 +121,9 @@ def run(args: argparse.Namespace) -> int:
                                        display_path, parameter_file_text, parameters_table,
                                        summary_lines, targets_table)
 
-    fit = parse_fit(args.fit)
+    # --params gives the start values, the fields not fitted and the model the names belong to
+    start, lut = load_model(args)
+    fit = parse_fit(args.fit, start.model)
     positive_int(args.max_nfev, "--max-nfev")
     positive_int(args.jobs, "--jobs")
     if args.out and not Path(args.out).expanduser().resolve().parent.is_dir():
@@ -124,7 +131,6 @@ def run(args: argparse.Namespace) -> int:
     scenarios = parse_scenarios(args.scenarios) if args.scenarios else None
     extra = [load_consist(c) for c in args.consist or ()]
     targets = build_targets(args.target, args.speed_kmh, scenarios, extra)
-    start, lut = load_model(args)  # --params gives the start values and the fields not fitted
     side = companion_rows(targets)
     side_cases = [(s.consist(), s.speed_kmh) for s in side]
     cases = [(t.consist, t.speed_kmh) for t in targets] + side_cases
@@ -166,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
         for w in cal.warnings:
             print(f"warning: {w}")
     if args.out:
-        text = parameter_file_text(cal, command_line(args))
+        text = parameter_file_text(cal, command_line(args, fit))
         try:
             Path(args.out).expanduser().write_text(text, encoding="utf-8")
         except OSError as exc:
