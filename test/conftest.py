@@ -200,11 +200,20 @@ class RosProbe:
                         f"a subscriber on {topic}")
         pub.publish(msg)
 
-    def call(self, srv_type, name: str, request, timeout_s: float = 30.0):
-        """Call a service and return its response."""
+    def client(self, srv_type, name: str):
+        """The probe's client of service ``name`` (created once).
+
+        Creating clients before the server starts lets the server discover them together
+        with the probe's other endpoints: a response sent before the server has matched the
+        client's reader is lost.
+        """
         if name not in self._clients:
             self._clients[name] = self.node.create_client(srv_type, name)
-        client = self._clients[name]
+        return self._clients[name]
+
+    def call(self, srv_type, name: str, request, timeout_s: float = 30.0):
+        """Call a service and return its response."""
+        client = self.client(srv_type, name)
         self.spin_until(client.service_is_ready, timeout_s, f"service {name}")
         future = client.call_async(request)
         self.spin_until(future.done, timeout_s, f"the response of {name}")

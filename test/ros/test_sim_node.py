@@ -189,20 +189,29 @@ def test_lockstep_runs_are_bit_identical_and_reset_restores_the_start(processes,
     params = ("lockstep:=true", f"steps_per_call:={chunks_per_call}", "auto_brake_at_s:=0.5",
               "real_time_factor:=1.0")
     runs_ns = ("/step_a", "/step_b")
-    procs = [start_node(processes, ns, *params) for ns in runs_ns]
     topics = [f"{ns}/{t}" for ns in runs_ns for t in ARRAYS]
     for topic in topics:
         probe.subscribe(topic, Float64MultiArray, raw=True)
     for ns in runs_ns:
         probe.subscribe(f"{ns}/clock", Clock)
+        for service in ("reset", "step"):
+            probe.client(Trigger, f"{ns}/sim_node/{service}")
+    probe.subscribe("/diagnostics", DiagnosticArray)
+    procs = [start_node(processes, ns, *params) for ns in runs_ns]
     got = probe.received
+    # a node that reports to the probe has discovered the probe's endpoints, clients included
+    for ns in runs_ns:
+        probe.spin_until(lambda: diagnostics(probe, f"{ns}/sim_node"), 60,
+                         f"diagnostics of {ns}/sim_node")
 
     def reset(ns):
-        # the reset state arrives on every topic once all readers are matched
+        # the reset state arrives on every topic once all readers are matched; a reset
+        # repeated because its reply or state went missing gives the same state
         for attempt in range(5):
             counts = {t: len(got[f"{ns}/{t}"]) for t in ARRAYS}
-            assert probe.call(Trigger, f"{ns}/sim_node/reset", Trigger.Request()).success
             try:
+                assert probe.call(Trigger, f"{ns}/sim_node/reset", Trigger.Request(),
+                                  timeout_s=10).success
                 probe.spin_until(lambda: all(len(got[f"{ns}/{t}"]) > counts[t] for t in ARRAYS),
                                  10, "the reset state")
             except pytest.fail.Exception:
