@@ -149,6 +149,8 @@ def resolve_run_spec(consist: str | None = None, *, scenario: str | int | None =
     else:
         raise RunSpecError("consist", "is empty: give a consist file or a scenario (e.g. "
                            "scenario_6)")
+    if speed_kmh is not None and not math.isfinite(speed_kmh):
+        raise RunSpecError("speed_kmh", f"must be a finite number of km/h, got {speed_kmh}")
     if speed_kmh is not None and speed_kmh >= 0.0:
         speed = float(speed_kmh)
     elif sc is not None:
