@@ -6,7 +6,7 @@ chunks (best of a few runs). Where the train is short enough, the same stop is i
 ratio, once with the analytical sparse Jacobian and once with solve_ivp's default dense
 finite-difference one, and Radau at rtol 1e-8 as the accuracy reference (stopping distance, per-coupler peak
 draft and buff, RMS force-history error, total-variation ratio; see
-:func:`ltd_brake_ros.reference.compare`). Then start-up time in a fresh process and a memory
+:func:`ltd_brake_ros.studies.reference.compare`). Then start-up time in a fresh process and a memory
 check over a long session.
 
 Usage::
