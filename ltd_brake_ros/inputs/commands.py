@@ -64,9 +64,7 @@ def load_command_script(path: str | os.PathLike) -> CommandScript:
             raise f.error("t_s", f"{t:g} s comes before the previous entry ({steps[-1][0]:g} s)")
         change: dict[str, Any] = {}
         if f.has("emergency"):
-            if not isinstance(f.data["emergency"], bool):
-                raise f.error("emergency", f"must be true or false, got {f.data['emergency']!r}")
-            change["emergency"] = f.data["emergency"]
+            change["emergency"] = f.boolean("emergency", False)
         if f.has("brake_demand"):
             lo, hi = COMMAND_RANGES["brake_demand"]
             change["brake_demand"] = f.number("brake_demand", lo=lo, hi=hi)

@@ -274,6 +274,7 @@ def consist_from_mapping(data: Any, source: str, base: Path | None = None) -> Co
     """
     top = Fields(data, source)
     top.reject_unknown({"name", "description", "vehicle_types", "vehicles"})
+    train_name = top.string("name", "") or Path(source).stem
     library = _vehicle_types(str(config_dir() / "vehicles.yaml"),
                              (load_yaml(config_dir() / "vehicles.yaml") or {}).get("vehicle_types"),
                              "vehicle_types")
@@ -313,7 +314,7 @@ def consist_from_mapping(data: Any, source: str, base: Path | None = None) -> Co
         name = str(f.data.get("type", f"vehicle {i}"))
         vehicles.extend([Vehicle(name, mass_t * 1e3, length, axles, rho, brake, position,
                                  traction)] * count)
-    return Consist(str(top.data.get("name") or Path(source).stem), tuple(vehicles), str(source))
+    return Consist(train_name, tuple(vehicles), str(source))
 
 
 def load_consist(path: str | os.PathLike) -> Consist:

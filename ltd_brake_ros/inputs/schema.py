@@ -8,11 +8,17 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import re
 import sys
 from pathlib import Path
 from typing import Any, Mapping
 
 import yaml
+from yaml.composer import Composer
+from yaml.constructor import ConstructorError, SafeConstructor
+from yaml.events import AliasEvent
+from yaml.nodes import CollectionNode, ScalarNode, SequenceNode
+from yaml.resolver import BaseResolver
 
 
 class InputError(ValueError):
@@ -90,8 +96,23 @@ def resolve_config_path(path: str | os.PathLike, base: Path | None = None) -> Pa
     return p
 
 
+#: Largest input file read [bytes]; the biggest consist (5000 vehicles, one line each) is < 1 MiB.
+MAX_FILE_BYTES = 8 * 2**20
+#: Deepest nesting of lists and mappings accepted; input files need about 5 levels.
+MAX_DEPTH = 32
+#: Most values (scalars, lists and mappings, each use of an alias counted as a copy of what it
+#: refers to) a file may hold: five times the biggest consist written out vehicle by vehicle.
+MAX_NODES = 500_000
+
+
 def load_yaml(path: str | os.PathLike) -> Any:
-    """Parse a YAML file, turning every I/O or syntax problem into :class:`InputError`.
+    """Parse a YAML input file into what a person reads in it, within fixed bounds.
+
+    Plain scalars are read with the YAML 1.2 core schema: whole numbers are decimal (``050``
+    is 50, not octal 40), ``1.5e3`` is a number, ``1:20``, ``1_000``, ``0x10`` and ``yes``/``no``/
+    ``on``/``off`` are text (YAML 1.1 read them as 80, 1000, 16 and booleans); only ``true``
+    and ``false`` are booleans. Explicit tags outside that schema (``!!timestamp``, ``!!binary``,
+    ``!!set``, Python tags) are refused. A key given twice in one mapping is refused.
 
     Parameters
     ----------
@@ -102,6 +123,13 @@ def load_yaml(path: str | os.PathLike) -> Any:
     -------
     object
         The parsed document.
+
+    Raises
+    ------
+    InputError
+        The file cannot be read, is not YAML, has a duplicate key, or exceeds
+        :data:`MAX_FILE_BYTES`, :data:`MAX_DEPTH` or :data:`MAX_NODES` (which bounds what
+        aliases can expand to); one line naming the file, the field and the line.
     """
     p = Path(path)
     if not p.exists():
@@ -109,16 +137,200 @@ def load_yaml(path: str | os.PathLike) -> Any:
     if not p.is_file():
         raise InputError(p, "", "is not a regular file")
     try:
-        text = p.read_text(encoding="utf-8")
+        with open(p, "rb") as fh:
+            raw = fh.read(MAX_FILE_BYTES + 1)
+        if len(raw) > MAX_FILE_BYTES:
+            raise InputError(p, "", f"is larger than {MAX_FILE_BYTES // 2**20} MiB; input "
+                             f"files are limited to {MAX_FILE_BYTES // 2**20} MiB")
+        text = raw.decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(p, "", f"cannot read: {exc}") from None
+    loader = _Loader(text)
     try:
-        return yaml.safe_load(text)
+        return loader.get_single_data()
+    except _Refused as exc:
+        raise InputError(p, exc.field, exc.reason) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
         raise InputError(p, "", f"not valid YAML{where}: {problem}") from None
+    finally:
+        loader.dispose()
+
+
+class _Refused(Exception):
+    """A document the loader will not build (field path, reason)."""
+
+    def __init__(self, field: str, reason: str):
+        super().__init__(reason)
+        self.field, self.reason = field, reason
+
+
+# YAML 1.2 core schema (https://yaml.org/spec/1.2.2/#1032-tag-resolution)
+_INT = re.compile(r"[-+]?[0-9]+\Z")
+_FLOAT = re.compile(r"(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?"
+                    r"|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))\Z")
+_BOOL = re.compile(r"(?:true|True|TRUE|false|False|FALSE)\Z")
+_NULL = re.compile(r"(?:~|null|Null|NULL|)\Z")
+_TAG = "tag:yaml.org,2002:"
+
+try:  # libyaml parses about three times faster; the composer below is Python either way
+    from yaml._yaml import CParser as _Parser
+
+    def _init_parser(loader, text):
+        _Parser.__init__(loader, text)
+except ImportError:  # pragma: no cover - PyYAML built without libyaml
+    from yaml.parser import Parser as _PyParser
+    from yaml.reader import Reader
+    from yaml.scanner import Scanner
+
+    class _Parser(Reader, Scanner, _PyParser):
+        """PyYAML's pure-Python parser."""
+
+    def _init_parser(loader, text):
+        Reader.__init__(loader, text)
+        Scanner.__init__(loader)
+        _PyParser.__init__(loader)
+
+
+class _Loader(_Parser, Composer, SafeConstructor, BaseResolver):
+    """PyYAML loader with the core schema, duplicate-key refusal and bounds (see load_yaml)."""
+
+    yaml_implicit_resolvers: dict = {}
+    yaml_constructors: dict = {}
+
+    def __init__(self, text: str):
+        _init_parser(self, text)
+        Composer.__init__(self)
+        SafeConstructor.__init__(self)
+        BaseResolver.__init__(self)
+        self._path: list[str] = []  # field path of the node being composed
+        self._sizes: dict[int, int] = {}  # id of a complete list/mapping node -> values in it
+
+    # the Python composer (bounded, checks duplicates), not libyaml's
+    get_single_node = Composer.get_single_node
+    get_single_data = SafeConstructor.get_single_data
+
+    def _where(self) -> str:
+        """Field path of the node being composed, e.g. ``vehicles[3].brake``."""
+        out = ""
+        for part in filter(None, self._path):
+            out += part if part.startswith("[") or not out else "." + part
+        return out
+
+    def compose_node(self, parent, index):
+        mark = self.peek_event().start_mark
+        if isinstance(parent, SequenceNode):
+            self._path.append(f"[{index}]")
+        elif isinstance(index, ScalarNode):
+            self._path.append(str(index.value))
+        elif index is not None:
+            self._path.append("?")
+        else:
+            self._path.append("")  # a mapping key, or the root
+        try:
+            if len(self._path) > MAX_DEPTH + 1:
+                top = next(filter(None, self._path), "")
+                raise _Refused(top, f"nested deeper than {MAX_DEPTH} levels (line "
+                               f"{mark.line + 1}); input files need fewer than 10")
+            alias = self.check_event(AliasEvent)
+            node = super().compose_node(parent, index)
+            if not isinstance(node, CollectionNode) or id(node) in self._sizes:
+                return node  # a scalar, or a complete node an alias refers to
+            if alias:
+                raise _Refused(self._where(), f"the alias on line {mark.line + 1} refers to a "
+                               "list or mapping that contains it")
+            items = node.value if isinstance(node, SequenceNode) else \
+                [n for pair in node.value for n in pair]
+            size = 1 + sum(self._sizes.get(id(n), 1) for n in items)
+            if size > MAX_NODES:
+                raise _Refused(self._where(), f"holds more than {MAX_NODES} values, counting "
+                               "every use of an alias (*name) as a copy (line "
+                               f"{mark.line + 1}); input files hold far fewer")
+            self._sizes[id(node)] = size
+            return node
+        finally:
+            self._path.pop()
+
+    def compose_mapping_node(self, anchor):
+        node = super().compose_mapping_node(anchor)
+        seen: dict = {}
+        for key, _value in node.value:
+            if not isinstance(key, ScalarNode):
+                continue
+            same = (key.tag, _key_value(key))
+            if same in seen:
+                first, second = seen[same].start_mark.line + 1, key.start_mark.line + 1
+                lines = f"on line {first}" if first == second else \
+                    f"(line {first} and line {second})"
+                self._path.append(str(key.value))
+                where = self._where()
+                self._path.pop()
+                raise _Refused(where, f"given twice {lines}; a key may appear once")
+            seen[same] = key
+        return node
+
+    def construct_decimal_int(self, node):
+        """A whole number written in decimal."""
+        value = self.construct_scalar(node)
+        if _INT.fullmatch(value):
+            try:
+                return int(value, 10)
+            except ValueError:  # more digits than Python converts
+                pass
+        raise ConstructorError(None, None, f"cannot read {value!r} as a decimal whole number",
+                               node.start_mark)
+
+    def construct_decimal_float(self, node):
+        """A number written in decimal, .inf or .nan."""
+        value = self.construct_scalar(node)
+        if _FLOAT.fullmatch(value):
+            low = value.lower()
+            if low.endswith(".inf"):
+                return -math.inf if low.startswith("-") else math.inf
+            return math.nan if low == ".nan" else float(value)
+        raise ConstructorError(None, None, f"cannot read {value!r} as a decimal number",
+                               node.start_mark)
+
+    def construct_core_bool(self, node):
+        """true or false."""
+        value = self.construct_scalar(node)
+        if _BOOL.fullmatch(value):
+            return value.lower() == "true"
+        raise ConstructorError(None, None, f"cannot read {value!r} as true or false",
+                               node.start_mark)
+
+
+def _key_value(node) -> Any:
+    """A scalar key as the value it stands for (``06`` and ``6`` are the same key)."""
+    text = node.value
+    if node.tag == _TAG + "int" and _INT.fullmatch(text):
+        return int(text, 10)
+    if node.tag == _TAG + "float" and _FLOAT.fullmatch(text) and not text.lower().endswith(
+            (".inf", ".nan")):
+        return float(text)
+    if node.tag == _TAG + "bool":
+        return text.lower()
+    if node.tag == _TAG + "null":
+        return None
+    return text
+
+
+for _tag, _regex, _first in (("bool", _BOOL, "tTfF"), ("int", _INT, "-+0123456789"),
+                             ("float", _FLOAT, "-+0123456789."), ("null", _NULL, "~nN")):
+    _Loader.add_implicit_resolver(_TAG + _tag, _regex, list(_first))
+_Loader.add_implicit_resolver(_TAG + "null", _NULL, [""])
+for _tag, _constructor in (
+        ("str", SafeConstructor.construct_yaml_str),
+        ("seq", SafeConstructor.construct_yaml_seq),
+        ("map", SafeConstructor.construct_yaml_map),
+        ("null", SafeConstructor.construct_yaml_null),
+        ("bool", _Loader.construct_core_bool),
+        ("int", _Loader.construct_decimal_int),
+        ("float", _Loader.construct_decimal_float)):
+    _Loader.add_constructor(_TAG + _tag, _constructor)
+_Loader.add_constructor(None, SafeConstructor.construct_undefined)
 
 
 # --------------------------------------------------------------------------- field readers
@@ -165,7 +377,8 @@ class Fields:
             return float(default)
         value = self.data[name]
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.error(name, f"must be a number, got {kind_of(value)} {value!r}")
+            raise self.error(name, f"must be a number, got {kind_of(value)} {value!r}"
+                             f"{_hint(value)}")
         value = float(value)
         if not math.isfinite(value):
             raise self.error(name, f"must be finite, got {value}")
@@ -184,7 +397,8 @@ class Fields:
             return int(default)
         value = self.data[name]
         if isinstance(value, bool) or not isinstance(value, int):
-            raise self.error(name, f"must be a whole number, got {kind_of(value)} {value!r}")
+            raise self.error(name, f"must be a whole number, got {kind_of(value)} {value!r}"
+                             f"{_hint(value)}")
         if value < lo or (hi is not None and value > hi):
             bound = f"between {lo} and {hi}" if hi is not None else f">= {lo}"
             raise self.error(name, f"must be {bound}, got {value}")
@@ -196,7 +410,8 @@ class Fields:
             return default
         value = self.data[name]
         if not isinstance(value, bool):
-            raise self.error(name, f"must be true or false, got {kind_of(value)} {value!r}")
+            raise self.error(name, f"must be true or false, got {kind_of(value)} {value!r}"
+                             f"{_hint(value, boolean=True)}")
         return value
 
     def string(self, name: str, default: str | None = None,
@@ -224,7 +439,7 @@ class Fields:
         for i, v in enumerate(values):
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise InputError(self.source, f"{self.sub(name)}[{i}]",
-                                 f"must be a finite number, got {v!r}")
+                                 f"must be a finite number, got {v!r}{_hint(v)}")
             out.append(float(v))
         return out
 
@@ -233,6 +448,22 @@ class Fields:
         for key in self.data:
             if key not in allowed:
                 raise self.error(str(key), f"unknown field; expected one of {', '.join(sorted(allowed))}")
+
+
+#: Text that YAML 1.1 read as a number (1:20, 1_000, 0x10, 0o10) or with a unit ("12 t").
+_NUMBER_LIKE = re.compile(r"[-+]?\.?[0-9]")
+#: Text that YAML 1.1 read as a boolean.
+_BOOLEAN_LIKE = {"yes", "no", "on", "off", "y", "n"}
+
+
+def _hint(value: Any, boolean: bool = False) -> str:
+    """How to write the number (or with ``boolean``, the true/false) that ``value`` was
+    meant to be, when it was read as text; empty otherwise."""
+    if not isinstance(value, str):
+        return ""
+    if boolean:
+        return " (write true or false)" if value.strip().lower() in _BOOLEAN_LIKE else ""
+    return " (write a plain decimal number)" if _NUMBER_LIKE.match(value.strip()) else ""
 
 
 def kind_of(value: Any) -> str:
