@@ -11,8 +11,9 @@ Contract
    :class:`Commands` and returns a :class:`Snapshot`. Chunks of any length give the same result
    as one long call, within the integrator tolerance (exactly the same when both are multiples
    of the step).
-3. A step whose Newton iteration does not converge raises :class:`SimulationError`; the state is
-   left at the start of the failed chunk's last good step and :meth:`reset` recovers.
+3. A step whose Newton iteration does not converge, that meets a force that is not finite, or
+   that fails with an arithmetic error raises :class:`SimulationError` with one line; the
+   simulator then refuses to advance until :meth:`reset`.
 4. Everything that changes lives in one :class:`SimulatorState`; :meth:`Simulator.reset`
    replaces it by a copy of the initial one. :attr:`Simulator.stats` reports what the
    integration cost.
@@ -42,7 +43,8 @@ from .physics.kernel import Stats  # noqa: F401 (part of this module's interface
 
 
 class SimulationError(RuntimeError):
-    """The integration could not proceed (a Newton iteration did not converge)."""
+    """The integration could not proceed (a Newton iteration did not converge, a force was not
+    finite, or a step failed with an arithmetic error)."""
 
 
 @dataclass(frozen=True)
@@ -370,7 +372,12 @@ class Simulator:
         tk = kernel.TrackArrays(float(track.start_chainage_m), np.array(
             [track.chainage_m, track.gradient_permille,
              [curve_resistance_N_per_kN(r) for r in track.radius_m]], float))
-        return kernel.TrainModel(train, fr, ba, couplers.compile(coupler), tr_arrays, tk)
+        try:
+            coupler_arrays = couplers.compile(coupler)
+        except couplers.CompileError as exc:
+            raise InputError(getattr(coupler, "source", "") or "coupler", exc.field,
+                             exc.reason) from None
+        return kernel.TrainModel(train, fr, ba, coupler_arrays, tr_arrays, tk)
 
     # ------------------------------------------------------------------ state
 
@@ -575,7 +582,8 @@ class Simulator:
         Raises
         ------
         SimulationError
-            A step did not converge.
+            A step did not converge, met a force that is not finite, or failed with an
+            arithmetic error (one line; the simulator then needs :meth:`reset`).
         """
         if not (math.isfinite(duration_s) and duration_s > 0.0):
             raise ValueError(f"duration_s must be a positive finite number, got {duration_s}")
@@ -591,9 +599,18 @@ class Simulator:
         inputs = kernel.Inputs(st.traction_demand, self.fext_N)
         while remaining:
             watch = st.stop_time_s is None and st.command_time_s is not None
-            code, t, hp, done = kernel.run_steps(
-                remaining, h, st.time_s, st.last_step_s, self.model, inputs, st.kinematics,
-                st.brakes, st.events, st.stats[0], self._options, watch)
+            try:
+                code, t, hp, done = kernel.run_steps(
+                    remaining, h, st.time_s, st.last_step_s, self.model, inputs, st.kinematics,
+                    st.brakes, st.events, st.stats[0], self._options, watch)
+            except ArithmeticError as exc:
+                # e.g. a division by zero in the compiled kernel; the state is part-way
+                # through a step, so only a reset recovers
+                st.failed = True
+                raise SimulationError(
+                    f"arithmetic failure ({type(exc).__name__}: {exc}) in a step after "
+                    f"t = {st.time_s:.4f} s (step {h:.4g} s): a force or stiffness of the "
+                    "inputs is beyond what the integrator resolves") from None
             st.time_s, st.last_step_s = t, hp
             remaining -= done
             if code == kernel.NEWTON_FAILED:
@@ -601,6 +618,11 @@ class Simulator:
                 raise SimulationError(
                     f"Newton iteration did not converge within {self.max_newton_iter} "
                     f"iterations in the step starting at t = {t:.4f} s (step {h:.4g} s)")
+            if code == kernel.NOT_FINITE:
+                st.failed = True
+                raise SimulationError(
+                    f"a force is not finite (inf or NaN) in the step starting at t = {t:.4f} s: "
+                    "check the external forces and the model parameters")
             if code == kernel.STOPPED:
                 st.stop_time_s = st.time_s
                 st.stopping_distance_m = float(st.kinematics.x_m[0]) - st.command_head_m

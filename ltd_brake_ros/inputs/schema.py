@@ -20,6 +20,8 @@ from yaml.events import AliasEvent
 from yaml.nodes import CollectionNode, ScalarNode, SequenceNode
 from yaml.resolver import BaseResolver
 
+from ..physics.parameters import out_of_range, specs
+
 
 class InputError(ValueError):
     """A bad input file or value.
@@ -380,12 +382,9 @@ class Fields:
             raise self.error(name, f"must be a number, got {kind_of(value)} {value!r}"
                              f"{_hint(value)}")
         value = float(value)
-        if not math.isfinite(value):
-            raise self.error(name, f"must be finite, got {value}")
-        if lo is not None and (value < lo or (lo_open and value == lo)):
-            raise self.error(name, f"must be {'>' if lo_open else '>='} {lo:g}, got {value:g}")
-        if hi is not None and value > hi:
-            raise self.error(name, f"must be <= {hi:g}, got {value:g}")
+        reason = out_of_range(value, lo, hi, lo_open)
+        if reason:
+            raise self.error(name, reason)
         return value
 
     def integer(self, name: str, default: int | None = None, *, lo: int = 0,
@@ -477,7 +476,7 @@ def params_from_fields(params_type, f: Fields, **fixed):
 
     Each field declared with :func:`~ltd_brake_ros.physics.parameters.parameter` is read under
     its file name, checked against its range and scaled to the field's unit; missing fields take
-    their defaults.
+    their defaults. The model's own preconditions are checked when it is compiled.
 
     Parameters
     ----------
@@ -492,14 +491,15 @@ def params_from_fields(params_type, f: Fields, **fixed):
     -------
     params_type
     """
-    from ..physics.parameters import specs
-
     values = {}
     for name, spec in specs(params_type).items():
         key = spec.key or name
         default = params_type.__dataclass_fields__[name].default
         if isinstance(default, bool):
             values[name] = f.boolean(key, default)
+            continue
+        if spec.sequence:  # a required table column (its range is the model's to check)
+            values[name] = tuple(spec.scale * x for x in f.numbers(key))
             continue
         if default is dataclasses.MISSING:
             default = None
@@ -512,6 +512,4 @@ def params_from_fields(params_type, f: Fields, **fixed):
 
 def file_keys(params_type) -> set[str]:
     """Names a file may use for the fields of a model's ``Params``."""
-    from ..physics.parameters import specs
-
     return {spec.key or name for name, spec in specs(params_type).items()}

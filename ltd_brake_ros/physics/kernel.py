@@ -39,7 +39,7 @@ from .constants import KMH_PER_MS
 from .equations import jit, jit_inline, lut_segment, resistance_coefficients
 
 #: Kernel return codes.
-OK, NEWTON_FAILED, STOPPED = 0, 1, 2
+OK, NEWTON_FAILED, STOPPED, NOT_FINITE = 0, 1, 2, 3
 
 
 class TrainArrays(NamedTuple):
@@ -531,7 +531,8 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
     Returns
     -------
     code : int
-        ``OK``, ``NEWTON_FAILED`` or ``STOPPED``.
+        ``OK``, ``NEWTON_FAILED``, ``NOT_FINITE`` (a force or its residual became infinite or
+        NaN) or ``STOPPED``.
     t : float
         Time reached [s].
     hp : float
@@ -617,8 +618,11 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
             converged = _residual(u, s, cp, fr_arrays, w)
             if converged:
                 break
-            if it >= options.max_newton_iter or not _all_finite(g):
+            if not _all_finite(g):
                 # a NaN or infinite force cannot be iterated away: fail at once
+                stats.newton_iterations += it
+                return NOT_FINITE, t, hp, _step
+            if it >= options.max_newton_iter:
                 stats.newton_iterations += it
                 return NEWTON_FAILED, t, hp, _step
             it += 1

@@ -3,7 +3,7 @@
 The kernel's Newton system is tridiagonal and symmetric positive definite, and its line search
 minimises a convex potential, only when every coupler force is non-decreasing in deflection and
 in rate: that property is checked on a grid that covers the valid range, beyond it, and rates
-across any steep band.
+across any steep band. ``compile`` refuses parameters outside their declarations.
 """
 import dataclasses
 import math
@@ -14,7 +14,7 @@ import pytest
 from ltd_brake_ros.inputs import consist_from_mapping, load_coupler_lut
 from ltd_brake_ros.physics import couplers
 from ltd_brake_ros.physics.couplers import linear
-from ltd_brake_ros.physics.parameters import Fittable
+from ltd_brake_ros.physics.parameters import CompileError, Fittable, specs
 from ltd_brake_ros.simulator import Commands, Simulator
 
 #: Typical parameters of every registered model (a new model adds its own here).
@@ -72,6 +72,24 @@ def test_declares_params_and_valid_range(name):
     assert arrays.valid_lo_m < 0.0 < arrays.valid_hi_m
     assert arrays.band_m_s >= 0.0
     assert params.draft_strength_N > 0.0 and params.buff_strength_N > 0.0
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_compile_refuses_every_field_outside_its_declaration(name):
+    params = EXAMPLES[name]
+    declared = specs(type(params))
+    assert declared, "a model declares its parameters"
+    for field, spec in declared.items():
+        value = getattr(params, field)
+        if spec.sequence:
+            bad = (math.nan,) + tuple(value[1:])
+        elif spec.lo is not None:
+            bad = (spec.lo - 1.0) * spec.scale
+        else:
+            bad = math.nan
+        with pytest.raises(CompileError) as err:
+            couplers.compile(dataclasses.replace(params, **{field: bad}))
+        assert err.value.field.startswith(spec.key or field), field
 
 
 @pytest.mark.parametrize("name", MODELS)

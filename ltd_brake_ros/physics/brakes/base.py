@@ -9,25 +9,10 @@ from typing import NamedTuple
 import numpy as np
 
 from ..equations import centre_offsets_m
+from ..parameters import CompileError  # noqa: F401 (part of this family's interface)
 
 #: Kinds of command events: an emergency application, or a service application/release.
 EMERGENCY, SERVICE = 0, 1
-
-
-class CompileError(ValueError):
-    """Per-vehicle arrays cannot be built from these inputs.
-
-    Parameters
-    ----------
-    field : str
-        Path of the offending input, e.g. ``vehicles[3].brake``.
-    reason : str
-        What is wrong.
-    """
-
-    def __init__(self, field: str, reason: str):
-        self.field, self.reason = field, reason
-        super().__init__(f"{field}: {reason}")
 
 
 class BrakeArrays(NamedTuple):

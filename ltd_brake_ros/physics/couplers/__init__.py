@@ -12,7 +12,14 @@ A coupler model is one module of this package that defines:
    frozen ``Params`` dataclass (units in the field names; fields declared with
    :func:`~ltd_brake_ros.physics.parameters.parameter` are read from a file by the input
    layer's shared field checks), ``FITTABLE`` (as for brake models; may be empty) and
-   ``compile(params)`` -> :class:`CouplerArrays`, built once, never mutated.
+   ``compile(params)`` -> :class:`CouplerArrays`, built once, never mutated. ``compile``
+   first checks every precondition of the parameters (declared ranges with
+   :func:`~ltd_brake_ros.physics.parameters.check`, and the model's physics: a table's
+   shape, signs, bounds, monotonicity and energy balance) and raises
+   :class:`~ltd_brake_ros.physics.parameters.CompileError` naming the field as a file spells
+   it; the loaders run it at load time, the simulator for parameters built in code. Forces,
+   deflections and slopes stay within :mod:`.base`'s ``MAX_FORCE_N``, ``MAX_DEFLECTION_M`` and
+   ``MAX_STIFFNESS_N_M``.
 2. ``force(table, coef, defl_m, rate_m_s)``, compiled with numba (inlined into the kernel's
    loops, so it takes the arrays of its :class:`CouplerArrays`, not the bundle): the force
    [N, draft positive], d(force)/d(deflection) [N/m] and d(force)/d(rate) [N/(m/s)].
@@ -36,10 +43,12 @@ from typing import Any
 
 from .. import parameters
 from ..equations import jit_inline
+from ..parameters import CompileError
 from . import linear, lut_hysteresis
 from .base import CouplerArrays
 
-__all__ = ["CouplerArrays", "DEFAULT_MODEL", "MODELS", "force", "force_of", "model_of"]
+__all__ = ["CompileError", "CouplerArrays", "DEFAULT_MODEL", "MODELS", "force", "force_of",
+           "model_of"]
 
 #: Registered coupler models by name.
 MODELS = {m.NAME: m for m in (
@@ -97,5 +106,10 @@ def compile(params) -> CouplerArrays:  # noqa: A001 - the contract's name
     Returns
     -------
     CouplerArrays
+
+    Raises
+    ------
+    CompileError
+        A precondition of the model does not hold.
     """
     return model_of(params).compile(params)

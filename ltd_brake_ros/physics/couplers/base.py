@@ -1,4 +1,5 @@
-"""What every coupler model shares: the bundle the kernel passes.
+"""What every coupler model shares: the bundle the kernel passes, the bounds of a plausible
+coupling.
 
 See the contract in :mod:`ltd_brake_ros.physics.couplers`.
 """
@@ -7,6 +8,20 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+
+# Bounds of a plausible coupling characteristic. Beyond them a value is a unit error (N or daN
+# in a kN column, m in a mm column), and forces or slopes that reach the kernel's Newton solve
+# unbounded can end in a division by zero.
+
+#: Largest force [N]: ten times the 2000 kN longitudinal compressive proof load of a freight
+#: wagon body at buffer height (EN 12663-2) and far above any draw gear's breaking strength.
+MAX_FORCE_N = 20e6
+#: Largest deflection either way [m]: ten times a side buffer's 105 mm stroke (the paper's
+#: buffers, UIC 526-1 category A).
+MAX_DEFLECTION_M = 1.0
+#: Largest stiffness [N/m] (10 000 kN/mm): twenty times the axial stiffness of a wagon's whole
+#: steel underframe (E A / L = 210 GPa x 0.02 m^2 / 10 m, about 420 kN/mm).
+MAX_STIFFNESS_N_M = 1e10
 
 
 class CouplerArrays(NamedTuple):

@@ -14,9 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import parameters
 from ..equations import jit_inline
 from ..parameters import REQUIRED, parameter
-from .base import CouplerArrays
+from .base import MAX_STIFFNESS_N_M, CouplerArrays
 
 NAME = "linear"
 #: Registry id: selects this model's branch of the jitted dispatch.
@@ -48,8 +49,8 @@ class Params:
     """
 
     stiffness_N_m: float = parameter(REQUIRED, "stiffness beyond the slack [kN/mm]",
-                                     lo=0.0, lo_open=True, hi=1e4, key="stiffness_kN_per_mm",
-                                     scale=1e6)
+                                     lo=0.0, lo_open=True, hi=MAX_STIFFNESS_N_M / 1e6,
+                                     key="stiffness_kN_per_mm", scale=1e6)
     damping_N_s_m: float = parameter(0.0, "viscous damping [kN s/m]", lo=0.0, hi=1e5,
                                      key="damping_kN_s_per_m", scale=1e3)
     slack_m: float = parameter(0.0, "free play either side of neutral [mm]", lo=0.0, hi=500.0,
@@ -68,7 +69,7 @@ FITTABLE: dict = {}
 
 
 def compile(params: Params) -> CouplerArrays:  # noqa: A001 - the contract's name
-    """The constants as arrays.
+    """The constants as arrays, once every field is finite and within its declared range.
 
     Parameters
     ----------
@@ -79,7 +80,13 @@ def compile(params: Params) -> CouplerArrays:  # noqa: A001 - the contract's nam
     CouplerArrays
         ``coef`` entries :data:`STIFFNESS`, :data:`DAMPING`, :data:`SLACK`; no band; valid
         within the slack plus the travel.
+
+    Raises
+    ------
+    CompileError
+        A field is not finite (the travel and strengths may be inf) or out of its range.
     """
+    parameters.check(params)
     coef = np.array([params.stiffness_N_m, params.damping_N_s_m, params.slack_m], float)
     reach = float(params.slack_m + params.travel_m)
     return CouplerArrays(ID, np.zeros((0, 0)), coef, 0.0, -reach, reach)

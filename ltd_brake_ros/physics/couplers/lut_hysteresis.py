@@ -11,8 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import parameters
 from ..equations import jit_inline, lut_segment
-from .base import CouplerArrays
+from ..parameters import REQUIRED, CompileError, parameter
+from .base import MAX_DEFLECTION_M, MAX_FORCE_N, MAX_STIFFNESS_N_M, CouplerArrays
 
 NAME = "lut_hysteresis"
 #: Registry id: selects this model's branch of the jitted dispatch.
@@ -31,25 +33,38 @@ class Params:
     Attributes
     ----------
     deflection_m : tuple of float
-        Strictly increasing deflections, draft positive [m].
+        Strictly increasing deflections from buff (negative) through 0 to draft (positive) [m]
+        (file: ``deflection_mm``).
     loading_N, unloading_N : tuple of float
-        Forces of the loading and unloading curves at those deflections, draft positive [N];
-        neither decreases with deflection.
+        Forces of the loading and unloading curves at those deflections, draft positive [N]
+        (files: ``loading_kN``, ``unloading_kN``); see :func:`check` for what they must meet.
     v_th_m_s : float
-        Eq. 3 threshold speed between the curves [m/s].
+        Eq. 3 threshold speed between the curves [m/s] (file: ``v_th_mm_s``).
     source : str
         File the table came from.
     draft_strength_N, buff_strength_N : float
-        Largest draft and buff force the coupling withstands, magnitudes [N] (inf: unknown).
+        Largest draft and buff force the coupling withstands, magnitudes [N] (files:
+        ``draft_strength_kN``, ``buff_strength_kN``; inf: unknown).
     """
 
-    deflection_m: tuple[float, ...]
-    loading_N: tuple[float, ...]
-    unloading_N: tuple[float, ...]
-    v_th_m_s: float = 1e-4
+    deflection_m: tuple[float, ...] = parameter(
+        REQUIRED, "table deflections, draft positive [mm]", key="deflection_mm", scale=1e-3,
+        sequence=True)
+    loading_N: tuple[float, ...] = parameter(
+        REQUIRED, "loading-curve force at each deflection, draft positive [kN]",
+        key="loading_kN", scale=1e3, sequence=True)
+    unloading_N: tuple[float, ...] = parameter(
+        REQUIRED, "unloading-curve force at each deflection, draft positive [kN]",
+        key="unloading_kN", scale=1e3, sequence=True)
+    # Eq. 3 divides by v_th: below 1 um/s its rate derivative |F_L - F_U|/(2 v_th) would exceed
+    # 1e13 N s/m, stiffer than any coupling and beyond what the Newton solve resolves
+    v_th_m_s: float = parameter(1e-4, "Eq. 3 threshold speed between the curves [mm/s]",
+                                lo=1e-3, hi=1e4, key="v_th_mm_s", scale=1e-3)
     source: str = ""
-    draft_strength_N: float = math.inf
-    buff_strength_N: float = math.inf
+    draft_strength_N: float = parameter(math.inf, "largest draft force withstood [kN]", lo=0.0,
+                                        lo_open=True, key="draft_strength_kN", scale=1e3)
+    buff_strength_N: float = parameter(math.inf, "largest buff force withstood, magnitude [kN]",
+                                       lo=0.0, lo_open=True, key="buff_strength_kN", scale=1e3)
 
 
 #: Parameters calibration may fit: none (a table is not fitted by distances).
@@ -57,7 +72,7 @@ FITTABLE: dict = {}
 
 
 def compile(params: Params) -> CouplerArrays:  # noqa: A001 - the contract's name
-    """The table as arrays.
+    """The table as arrays, once :func:`check` has passed.
 
     Parameters
     ----------
@@ -68,10 +83,101 @@ def compile(params: Params) -> CouplerArrays:  # noqa: A001 - the contract's nam
     CouplerArrays
         ``table`` rows :data:`DEFLECTION`, :data:`LOADING`, :data:`UNLOADING`; ``coef``
         [v_th]; the valid range is the table's.
+
+    Raises
+    ------
+    CompileError
+        A precondition of :func:`check` does not hold.
     """
+    check(params)
     table = np.array([params.deflection_m, params.loading_N, params.unloading_N], float)
     return CouplerArrays(ID, table, np.array([float(params.v_th_m_s)]), float(params.v_th_m_s),
                          float(table[DEFLECTION, 0]), float(table[DEFLECTION, -1]))
+
+
+def check(params: Params) -> None:
+    """Check the physical preconditions of a table (file units in the messages).
+
+    Within the table (beyond it the force is extrapolated and the simulator reports the
+    excursion):
+
+    * the declared fields are finite and in range
+      (:func:`~ltd_brake_ros.physics.parameters.check`): v_th of 1e-3 to 1e4 mm/s, positive
+      strengths;
+    * at least two points, one force of each curve per deflection;
+    * deflections strictly increasing, within +-``MAX_DEFLECTION_M`` (:mod:`.base`), from buff
+      (negative) through 0 to draft (positive): the couplers start unloaded at 0;
+    * forces within +-``MAX_FORCE_N``, of the deflection's sign (draft pulls, buff pushes);
+    * each curve non-decreasing in deflection, no steeper than ``MAX_STIFFNESS_N_M``, and not
+      flat: the contract's monotonicity, so that the Eq. 3 force is non-decreasing in
+      deflection and rate;
+    * unloading no larger than loading in magnitude (|F_U| <= |F_L|): a coupling gives back at
+      most the energy it absorbed.
+
+    Parameters
+    ----------
+    params : Params
+
+    Raises
+    ------
+    CompileError
+        For the first precondition that fails, naming the file's field and point.
+    """
+    parameters.check(params)
+    key = {name: parameters.file_key(Params, name)
+           for name in ("deflection_m", "loading_N", "unloading_N")}
+    d = params.deflection_m
+    if len(d) < 2:
+        raise CompileError(key["deflection_m"], f"needs at least 2 points, got {len(d)}")
+    for name in ("loading_N", "unloading_N"):
+        if len(getattr(params, name)) != len(d):
+            raise CompileError(key[name], f"has {len(getattr(params, name))} values but "
+                               f"{key['deflection_m']} has {len(d)}")
+    mm = [x * 1e3 for x in d]  # file units, for the messages only
+    for i, x in enumerate(d):
+        if abs(x) > MAX_DEFLECTION_M:
+            raise CompileError(f"{key['deflection_m']}[{i}]", f"{mm[i]:g} mm is outside "
+                               f"{-MAX_DEFLECTION_M * 1e3:g} to {MAX_DEFLECTION_M * 1e3:g} mm, "
+                               "ten times a buffer's stroke (deflections are in mm)")
+        if i and not x > d[i - 1]:
+            raise CompileError(f"{key['deflection_m']}[{i}]", "must be strictly increasing "
+                               f"({mm[i - 1]:g} then {mm[i]:g})")
+    if not d[0] < 0.0 < d[-1]:
+        raise CompileError(key["deflection_m"], "must run from buff (negative) to draft "
+                           f"(positive) through 0 mm, got {mm[0]:g} to {mm[-1]:g} mm: the "
+                           "couplers start unloaded at 0 mm")
+    for name in ("loading_N", "unloading_N"):
+        f = getattr(params, name)
+        kn = [y * 1e-3 for y in f]
+        for i, y in enumerate(f):
+            where = f"{key[name]}[{i}]"
+            if abs(y) > MAX_FORCE_N:
+                raise CompileError(where, f"{kn[i]:g} kN is outside {-MAX_FORCE_N * 1e-3:g} to "
+                                   f"{MAX_FORCE_N * 1e-3:g} kN, ten times a freight wagon's "
+                                   "proof load (forces are in kN)")
+            if y * d[i] < 0.0:
+                raise CompileError(where, f"{kn[i]:g} kN at {mm[i]:g} mm has the wrong sign: "
+                                   "draft (deflection > 0) pulls with a force >= 0, buff (< 0) "
+                                   "pushes with a force <= 0")
+            if not i:
+                continue
+            if y < f[i - 1]:
+                raise CompileError(where, f"must not decrease with deflection ({kn[i - 1]:g} "
+                                   f"then {kn[i]:g} kN): a coupler never pulls back harder "
+                                   "when compressed further")
+            slope = (y - f[i - 1]) / (d[i] - d[i - 1])
+            if slope > MAX_STIFFNESS_N_M:
+                raise CompileError(where, f"rises {slope * 1e-6:.4g} kN/mm from {mm[i - 1]:g} to "
+                                   f"{mm[i]:g} mm, stiffer than {MAX_STIFFNESS_N_M * 1e-6:g} "
+                                   "kN/mm (twenty times a wagon's whole underframe)")
+        if f[0] == f[-1]:
+            raise CompileError(key[name], "is flat: the coupler would have no stiffness")
+    for i, (fl, fu) in enumerate(zip(params.loading_N, params.unloading_N)):
+        if abs(fu) > abs(fl):
+            raise CompileError(f"{key['unloading_N']}[{i}]", f"{fu * 1e-3:g} kN exceeds the "
+                               f"loading curve's {fl * 1e-3:g} kN in magnitude at {mm[i]:g} mm: "
+                               "the coupling would give back more energy than it absorbed "
+                               "(columns swapped?)")
 
 
 @jit_inline
