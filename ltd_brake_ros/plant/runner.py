@@ -111,8 +111,8 @@ class PlantRunner:
         self.sim, self.settings, self.recorder = sim, settings, recorder
         self._publish_state, self._publish_status = publish_state, publish_status
         self._input_handled = input_handled or (lambda name, value, message: None)
-        self._log, self._labels, self._clock, self._host_ok = log, dict(labels or {}), clock, \
-            host_ok
+        self._log, self._clock, self._host_ok = log, clock, host_ok
+        self._labels = dict(labels or {})
         self.real_time_factor = settings.real_time_factor
         #: Chunks advanced per :meth:`step` request (may change at run time).
         self.steps_per_call = settings.steps_per_call
