@@ -204,6 +204,84 @@ class CouplerPeaks:
                    float(buff[jb]), jb + 1, float(np.asarray(buff_time_s)[jb]))
 
 
+@dataclass(frozen=True)
+class Excursion:
+    """One coupler's largest excursion beyond the coupler model's valid range.
+
+    Attributes
+    ----------
+    coupler : int
+        Coupler number (1 = behind the head).
+    beyond_range_mm : float
+        How far its deflection went beyond the valid range (the coupler table's ends) [mm].
+    time_s : float
+        When that largest excursion occurred [s].
+    first_time_s : float
+        When the coupler first left the range [s].
+    """
+
+    coupler: int
+    beyond_range_mm: float
+    time_s: float
+    first_time_s: float
+
+
+@dataclass(frozen=True)
+class CouplerExcursions:
+    """Summary of the couplers that went beyond the coupler model's valid range.
+
+    Long trains push hundreds of couplers past a coupler table's ends; this is the one place
+    that counts them and ranks the worst, for a one-line warning instead of one per coupler.
+
+    Attributes
+    ----------
+    count : int
+        Couplers that went beyond the range.
+    total : int
+        Couplers of the train.
+    worst : tuple of Excursion
+        The largest excursions, largest first (at most the number asked for).
+    """
+
+    count: int = 0
+    total: int = 0
+    worst: tuple = ()
+
+    @classmethod
+    def from_arrays(cls, beyond_m, time_s, first_time_s, worst: int = 3) -> "CouplerExcursions":
+        """Summarise per-coupler excursions.
+
+        Parameters
+        ----------
+        beyond_m : array_like
+            Largest excursion of each coupler beyond the valid range, 0 if none [m].
+        time_s, first_time_s : array_like
+            When it occurred and when the coupler first left the range [s].
+        worst : int, optional
+            How many of the largest to keep.
+
+        Returns
+        -------
+        CouplerExcursions
+        """
+        beyond = np.asarray(beyond_m, float)
+        out = np.flatnonzero(beyond > 0.0)
+        ranked = out[np.argsort(-beyond[out], kind="stable")][: max(int(worst), 0)]
+        t, t0 = np.asarray(time_s, float), np.asarray(first_time_s, float)
+        return cls(int(out.size), int(beyond.size), tuple(
+            Excursion(int(j) + 1, float(beyond[j]) * 1e3, float(t[j]), float(t0[j]))
+            for j in ranked))
+
+    def describe(self) -> str:
+        """One line: how many couplers went beyond the range, and the worst."""
+        if not self.count:
+            return f"no coupler of {self.total} went beyond the coupler characteristic's range"
+        worst = ", ".join(f"coupler {e.coupler} by {e.beyond_range_mm:.1f} mm at "
+                          f"t = {e.time_s:.2f} s" for e in self.worst)
+        return (f"{self.count} of {self.total} couplers went beyond the coupler "
+                f"characteristic's range, where forces are extrapolated; worst: {worst}")
+
+
 @dataclass
 class SimulatorState:
     """Everything about a simulator that changes while it runs.
@@ -506,6 +584,22 @@ class Simulator:
         """
         return CouplerPeaks.from_arrays(self.peak_draft_N, self.peak_draft_time_s,
                                         self.peak_buff_N, self.peak_buff_time_s)
+
+    def coupler_excursions(self, worst: int = 3) -> CouplerExcursions:
+        """Couplers that went beyond the coupler model's valid range since the last reset.
+
+        Parameters
+        ----------
+        worst : int, optional
+            How many of the largest excursions to list.
+
+        Returns
+        -------
+        CouplerExcursions
+        """
+        k, nc = self._state.kinematics, self.n - 1
+        return CouplerExcursions.from_arrays(k.beyond_range_m[:nc], k.beyond_range_time_s[:nc],
+                                             k.out_of_range_time_s[:nc], worst)
 
     def braked_weight_percent(self) -> float:
         """Train braked-weight percentage lambda_train, Eq. 11 [%]."""

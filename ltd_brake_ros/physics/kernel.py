@@ -161,6 +161,8 @@ class KinematicState(NamedTuple):
         Largest excursion beyond the coupler model's valid range, per coupler [m].
     out_of_range_time_s : ndarray
         First time each coupler was out of its range [s] (-1: never).
+    beyond_range_time_s : ndarray
+        Time of each coupler's largest excursion [s] (-1: never out of range).
     """
 
     x_m: np.ndarray
@@ -177,6 +179,7 @@ class KinematicState(NamedTuple):
     peak_buff_time_s: np.ndarray
     beyond_range_m: np.ndarray
     out_of_range_time_s: np.ndarray
+    beyond_range_time_s: np.ndarray
 
     @classmethod
     def initial(cls, n: int, speed_m_s: float) -> "KinematicState":
@@ -185,7 +188,7 @@ class KinematicState(NamedTuple):
         v = np.full(n, speed_m_s)
         return cls(np.zeros(n), v, np.zeros(n), np.full(n, speed_m_s), v == 0.0, np.zeros(n),
                    np.zeros(nc), np.zeros(n), np.zeros(nc), np.zeros(nc), np.zeros(nc),
-                   np.zeros(nc), np.zeros(nc), np.full(nc, -1.0))
+                   np.zeros(nc), np.zeros(nc), np.full(nc, -1.0), np.full(nc, -1.0))
 
     def copy(self) -> "KinematicState":
         """An independent copy."""
@@ -552,6 +555,7 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
     peak_draft, t_draft = state.peak_draft_N, state.peak_draft_time_s
     peak_buff, t_buff = state.peak_buff_N, state.peak_buff_time_s
     lut_out, t_lut_out = state.beyond_range_m, state.out_of_range_time_s
+    t_lut_max = state.beyond_range_time_s
     fext = inputs.external_force_N
     fb = brake_state.force_N
     kind, blocks, arrangement, mu_disc = (fr_arrays.kind, fr_arrays.blocks, fr_arrays.arrangement,
@@ -708,6 +712,7 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
                     t_lut_out[j] = t
                 if out > lut_out[j]:
                     lut_out[j] = out
+                    t_lut_max[j] = t
         if watch_stop:
             all_stopped = True
             for i in range(n):

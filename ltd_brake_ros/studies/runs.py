@@ -3,13 +3,31 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass
-
-import numpy as np
+from typing import Callable, NamedTuple
 
 from ..inputs import (BrakeParams, CommandScript, Consist, CouplerLUT, Scenario, Track,
                      load_brake_params, load_coupler_lut, load_scenarios)
-from ..simulator import Commands, SimulationError, Simulator
+from ..simulator import Commands, CouplerExcursions, SimulationError, Simulator, Snapshot
 from .parallel import map_jobs
+
+
+class Progress(NamedTuple):
+    """How far a run has come, reported after every chunk.
+
+    Attributes
+    ----------
+    time_s : float
+        Simulated time reached [s].
+    fraction : float or None
+        Share of the run done, 0 to 1; None when the end is not known in advance (a run
+        until the train stops).
+    wall_s : float
+        Wall time since the run started [s].
+    """
+
+    time_s: float
+    fraction: float | None
+    wall_s: float
 
 
 @dataclass(frozen=True)
@@ -17,6 +35,8 @@ class StopResult:
     """Summary of one emergency stop (units in the names).
 
     Coupler numbers count from 1 behind the head; buff forces are reported as negative values.
+    ``couplers_beyond_lut`` and ``max_beyond_lut_mm`` head ``out_of_range``, the summary of
+    the couplers that went beyond the coupler characteristic's range with the worst three.
     """
 
     consist: str
@@ -41,6 +61,7 @@ class StopResult:
     newton_iterations: int
     newton_iterations_per_step: float
     max_newton_iterations: int
+    out_of_range: CouplerExcursions
 
     def as_dict(self) -> dict:
         """Plain dict for JSON output."""
@@ -51,7 +72,8 @@ def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | Non
                    lut: CouplerLUT | None = None, track: Track | None = None, *,
                    step_s: float = 0.01,
                    chunk_s: float = 1.0, max_time_s: float = 600.0,
-                   on_chunk=None) -> StopResult:
+                   on_chunk: Callable[[Snapshot], None] | None = None,
+                   progress: Callable[[Progress], None] | None = None) -> StopResult:
     """Apply the emergency brake at t = 0 and integrate until the train stands still.
 
     Parameters
@@ -71,6 +93,9 @@ def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | Non
         Give up (raise) if the train has not stopped by then [s].
     on_chunk : callable, optional
         Called with each :class:`~ltd_brake_ros.simulator.Snapshot`.
+    progress : callable, optional
+        Called with a :class:`Progress` after each chunk (``fraction`` None: the stop time is
+        not known in advance).
 
     Returns
     -------
@@ -85,15 +110,11 @@ def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | Non
     lut = lut or load_coupler_lut()
     sim = Simulator(consist, speed_kmh, params, lut, track, step_s=step_s)
     start = time.perf_counter()
-    snap = sim.advance(chunk_s, Commands(emergency=True))
-    if on_chunk:
-        on_chunk(snap)
+    _report(sim.advance(chunk_s, Commands(emergency=True)), None, start, on_chunk, progress)
     while sim.stop_time_s is None:
         if sim.time_s >= max_time_s:
             raise SimulationError(f"the train had not stopped after {max_time_s:g} s")
-        snap = sim.advance(chunk_s)
-        if on_chunk:
-            on_chunk(snap)
+        _report(sim.advance(chunk_s), None, start, on_chunk, progress)
     wall = time.perf_counter() - start
     return summarize(sim, wall)
 
@@ -101,7 +122,8 @@ def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | Non
 def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
                  params: BrakeParams | None = None, lut: CouplerLUT | None = None,
                  track: Track | None = None, *, step_s: float = 0.01, chunk_s: float = 0.1,
-                 max_time_s: float = 3600.0, on_chunk=None) -> Simulator:
+                 max_time_s: float = 3600.0, on_chunk: Callable[[Snapshot], None] | None = None,
+                 progress: Callable[[Progress], None] | None = None) -> Simulator:
     """Run a train under a timed command script.
 
     The inputs change at chunk boundaries (every ``chunk_s``), as they would when a controller
@@ -121,6 +143,9 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
         Upper bound when the script has no duration and the train does not stop [s].
     on_chunk : callable, optional
         Called with each :class:`~ltd_brake_ros.simulator.Snapshot`.
+    progress : callable, optional
+        Called with a :class:`Progress` after each chunk (``fraction`` of the script's
+        duration; None without one).
 
     Returns
     -------
@@ -132,16 +157,25 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
     end = script.duration_s if script.duration_s is not None else max_time_s
     state: dict = {}
     k = 0
+    start = time.perf_counter()
     while sim.time_s < end - 1e-9:
         while k < len(script.steps) and script.steps[k][0] <= sim.time_s + 1e-9:
             state.update(script.steps[k][1])
             k += 1
         snap = sim.advance(min(chunk_s, end - sim.time_s), Commands(**state))
-        if on_chunk:
-            on_chunk(snap)
+        _report(snap, script.duration_s, start, on_chunk, progress)
         if script.duration_s is None and sim.stop_time_s is not None:
             break
     return sim
+
+
+def _report(snap: Snapshot, end_s: float | None, start: float, on_chunk, progress) -> None:
+    """Hand a chunk's snapshot and the run's progress (towards ``end_s``, if known) on."""
+    if on_chunk:
+        on_chunk(snap)
+    if progress:
+        progress(Progress(snap.time_s, None if end_s is None else min(snap.time_s / end_s, 1.0),
+                          time.perf_counter() - start))
 
 
 def summarize(sim: Simulator, wall_s: float) -> StopResult:
@@ -158,7 +192,7 @@ def summarize(sim: Simulator, wall_s: float) -> StopResult:
     StopResult
     """
     peaks = sim.coupler_peaks()
-    exc = sim.lut_excursion_m
+    beyond = sim.coupler_excursions()
     stop_t = sim.stop_time_s - (sim.command_time_s or 0.0)
     return StopResult(
         consist=sim.consist.name, vehicles=sim.n, train_length_m=sim.consist.length_m,
@@ -170,11 +204,12 @@ def summarize(sim: Simulator, wall_s: float) -> StopResult:
         peak_draft_time_s=peaks.draft_time_s,
         peak_buff_kN=peaks.buff_N / 1e3, peak_buff_coupler=peaks.buff_coupler,
         peak_buff_time_s=peaks.buff_time_s,
-        couplers_beyond_lut=int(np.count_nonzero(exc)), max_beyond_lut_mm=float(exc.max(initial=0.0)) * 1e3,
+        couplers_beyond_lut=beyond.count,
+        max_beyond_lut_mm=beyond.worst[0].beyond_range_mm if beyond.worst else 0.0,
         wall_time_s=wall_s, real_time_factor=sim.time_s / wall_s if wall_s > 0 else float("inf"),
         steps=sim.steps, newton_iterations=sim.newton_iterations,
         newton_iterations_per_step=sim.newton_iterations / max(sim.steps, 1),
-        max_newton_iterations=sim.max_newton_iterations)
+        max_newton_iterations=sim.max_newton_iterations, out_of_range=beyond)
 
 
 @dataclass(frozen=True)
