@@ -161,6 +161,28 @@ def load_yaml(path: str | os.PathLike) -> Any:
         loader.dispose()
 
 
+def decimal_or_text(text: str) -> Any:
+    """A text cell (e.g. of a CSV file) read as :func:`load_yaml` reads a plain scalar.
+
+    Parameters
+    ----------
+    text : str
+
+    Returns
+    -------
+    float or str
+        The number when the text is a decimal number (``12``, ``-0.5``, ``1e3``, ``.inf``),
+        else the text stripped (``1:20``, ``1_000`` and ``12 t`` stay text).
+    """
+    text = text.strip()
+    if not (_INT.match(text) or _FLOAT.match(text)):
+        return text
+    low = text.lower()
+    if low.endswith(".inf"):
+        return -math.inf if low.startswith("-") else math.inf
+    return math.nan if low == ".nan" else float(text)
+
+
 class _Refused(Exception):
     """A document the loader will not build (field path, reason)."""
 
@@ -288,10 +310,7 @@ class _Loader(_Parser, Composer, SafeConstructor, BaseResolver):
         """A number written in decimal, .inf or .nan."""
         value = self.construct_scalar(node)
         if _FLOAT.fullmatch(value):
-            low = value.lower()
-            if low.endswith(".inf"):
-                return -math.inf if low.startswith("-") else math.inf
-            return math.nan if low == ".nan" else float(value)
+            return decimal_or_text(value)
         raise ConstructorError(None, None, f"cannot read {value!r} as a decimal number",
                                node.start_mark)
 

@@ -5,7 +5,7 @@ import os
 from dataclasses import dataclass
 from typing import Any
 
-from .schema import Fields, InputError, load_yaml, resolve_config_path
+from .schema import Fields, InputError, decimal_or_text, load_yaml, resolve_config_path
 
 
 @dataclass(frozen=True)
@@ -102,7 +102,4 @@ def load_track(path: str | os.PathLike, start_chainage_m: float | None = None) -
 def _csv_number(text: str | None) -> Any:
     if text is None or text.strip() == "":
         return None
-    try:
-        return float(text)
-    except ValueError:
-        return text
+    return decimal_or_text(text)

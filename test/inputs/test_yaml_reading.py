@@ -50,6 +50,16 @@ def test_other_number_spellings_are_refused_with_the_field(tmp_path, text):
     assert "plain decimal number" in msg
 
 
+@pytest.mark.parametrize("text", ["1:20", "1_000", "0x10", "nan"])
+def test_csv_track_reads_numbers_as_the_yaml_files_do(tmp_path, text):
+    # Python's float() reads 1_000 and nan; the cells follow the YAML files' reading
+    p = write(tmp_path, f"chainage_m,gradient_permille\n0,1.5e1\n500,{text}\n", "track.csv")
+    assert f"row 3.gradient_permille: must be a number, got text '{text}'" in \
+        error_of(load_track, p)
+    p.write_text("chainage_m,gradient_permille\n0,1.5e1\n500, -2 \n")
+    assert load_track(p).gradient_permille == (15.0, -2.0)
+
+
 def test_exponents_without_a_point_or_sign_are_numbers(tmp_path):
     # YAML 1.1 reads 2.85e3 and 1e3 as text
     p = write(tmp_path, "deflection_mm: [-300, 0, 1.5e2]\nloading_kN: [-6.5e3, 0, 2850]\n"
