@@ -44,7 +44,11 @@ def load_scenarios() -> dict[int, Scenario]:
     p = config_dir() / "scenarios.yaml"
     data = Fields(load_yaml(p), str(p)).data.get("scenarios") or {}
     out = {}
+    if not isinstance(data, dict):
+        raise InputError(p, "scenarios", "must be a mapping of scenario number to run")
     for key, row in data.items():
+        if isinstance(key, bool) or not isinstance(key, int):
+            raise InputError(p, f"scenarios.{key}", "must be a scenario number")
         f = Fields(row, str(p), f"scenarios.{key}")
         paper = {k: v for k, v in row.items() if k not in ("consist", "speed_kmh")}
         out[int(key)] = Scenario(int(key), f.string("consist"), f.number("speed_kmh", lo=0.0), paper)

@@ -11,7 +11,7 @@ import time
 import pytest
 
 from ltd_brake_ros.inputs import (InputError, load_command_script, load_consist,
-                                  load_coupler_lut, load_track, load_yaml)
+                                  load_coupler_lut, load_scenarios, load_track, load_yaml)
 from ltd_brake_ros.inputs import schema
 
 
@@ -199,3 +199,17 @@ def test_node_count_without_aliases_is_bounded(tmp_path, monkeypatch):
 ])
 def test_explicit_tags_outside_the_core_schema(tmp_path, text, words):
     assert words in error_of(load_yaml, write(tmp_path, text + "\n"))
+
+
+@pytest.mark.parametrize("key,words", [
+    ("06", None),
+    ("six", "scenarios.six: must be a scenario number"),
+    ("true", "scenarios.True: must be a scenario number"),
+])
+def test_scenario_numbers_are_decimal_whole_numbers(tmp_path, monkeypatch, key, words):
+    write(tmp_path, f"scenarios:\n  {key}: {{consist: a.yaml, speed_kmh: 100}}\n", "scenarios.yaml")
+    monkeypatch.setenv("LTD_BRAKE_CONFIG", str(tmp_path))
+    if words is None:
+        assert list(load_scenarios()) == [6]
+    else:
+        assert words in error_of(lambda _p: load_scenarios(), tmp_path / "scenarios.yaml")
