@@ -1,0 +1,270 @@
+"""Campaign report: quantiles with bootstrap confidence intervals, exceedance probabilities,
+the worst runs, CDF and histogram plots, and the relative approach against a reference family.
+
+The relative approach (as UIC 421 admits new freight-train families): a family fails a
+criterion when its quantile of the KPI exceeds the reference family's with the stated
+confidence (the share of bootstrap resamples in which the family's quantile is the larger),
+and passes otherwise.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..inputs import InputError
+from ..studies.campaign_exec import read_results
+
+__all__ = ["KPIS", "bootstrap_quantile", "campaign_report", "format_report", "parse_thresholds"]
+
+#: KPIs summarised: column -> (label, unit); larger is worse for each.
+KPIS = {
+    "abs_peak_buff_kN": ("peak buff force (magnitude)", "kN"),
+    "peak_draft_kN": ("peak draft force", "kN"),
+    "max_adhesion_demand": ("max adhesion demand", "-"),
+    "stopping_distance_m": ("stopping distance", "m"),
+}
+#: Quantiles reported.
+QUANTILES = (0.5, 0.9, 0.99)
+#: Bootstrap resamples.
+RESAMPLES = 1000
+
+
+def parse_thresholds(items: list[str]) -> dict[str, float]:
+    """``["KPI=VALUE", ...]`` -> {KPI: VALUE}.
+
+    Raises
+    ------
+    InputError
+        Naming ``--threshold`` and the bad item.
+    """
+    out = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        if name not in KPIS:
+            raise InputError("--threshold", "", f"unknown KPI {name!r} in {item!r}; known: "
+                             f"{', '.join(KPIS)}")
+        try:
+            out[name] = float(value)
+        except ValueError:
+            raise InputError("--threshold", "", f"{item!r}: write KPI=NUMBER") from None
+        if not math.isfinite(out[name]):
+            raise InputError("--threshold", "", f"{item!r}: the value must be finite")
+    return out
+
+
+def bootstrap_quantile(x: np.ndarray, q: float, confidence: float, rng: np.random.Generator,
+                       resamples: int = RESAMPLES) -> tuple[float, float, float, np.ndarray]:
+    """Quantile ``q`` of ``x`` with a percentile-bootstrap confidence interval.
+
+    Parameters
+    ----------
+    x : ndarray
+    q : float
+        Quantile in (0, 1).
+    confidence : float
+        Two-sided confidence of the interval.
+    rng : numpy.random.Generator
+    resamples : int, optional
+
+    Returns
+    -------
+    estimate, low, high : float
+    replicates : ndarray
+        The resampled quantiles (for paired comparisons).
+    """
+    idx = rng.integers(0, len(x), (resamples, len(x)))
+    reps = np.quantile(x[idx], q, axis=1)
+    a = (1.0 - confidence) / 2.0
+    return float(np.quantile(x, q)), float(np.quantile(reps, a)), float(np.quantile(reps, 1 - a)), reps
+
+
+def _kpis(table) -> dict[str, np.ndarray]:
+    ok = np.array(table["status"].to_pylist()) == "ok"
+    out = {}
+    for name in KPIS:
+        col = "peak_buff_kN" if name == "abs_peak_buff_kN" else name
+        x = np.array(table[col].to_numpy(zero_copy_only=False), float)[ok]
+        out[name] = np.abs(x) if name == "abs_peak_buff_kN" else x
+    return {k: v[np.isfinite(v)] for k, v in out.items()}
+
+
+def campaign_report(folder, *, against=None, thresholds: dict | None = None,
+                    quantile: float = 0.99, confidence: float = 0.95, worst: int = 5,
+                    plots=None, seed: int = 0) -> dict:
+    """Summarise a campaign results folder.
+
+    Parameters
+    ----------
+    folder : path-like
+        Results folder of ``ltd-brake campaign run``.
+    against : path-like, optional
+        Results folder of the reference family (relative approach).
+    thresholds : dict, optional
+        KPI -> value: the probability of exceeding it (Wilson interval).
+    quantile : float, optional
+        Quantile compared by the relative approach.
+    confidence : float, optional
+        Confidence of intervals and verdicts.
+    worst : int, optional
+        Worst runs listed per force KPI.
+    plots : path-like, optional
+        Folder for ``cdf_<KPI>.png`` and ``hist_<KPI>.png``.
+    seed : int, optional
+        Bootstrap seed (the report is reproducible).
+
+    Returns
+    -------
+    dict
+        ``name``, ``runs``, ``failed``, ``failures`` (first messages), ``quantiles``,
+        ``verdict_counts``, ``exceedance``, ``worst``, ``relative`` and ``plots``.
+    """
+    meta, table = read_results(folder)
+    rng = np.random.default_rng(seed)
+    status = np.array(table["status"].to_pylist())
+    n_failed = int((status != "ok").sum())
+    kpis = _kpis(table)
+    qs = sorted(set(QUANTILES) | {quantile})
+    rep: dict = {"name": meta.get("name", str(folder)), "folder": str(folder),
+                 "runs": table.num_rows, "expected_runs": meta.get("runs"), "failed": n_failed,
+                 "failures": [f"run {r['run_id']}: {r['message']}" for r in table.filter(
+                     status != "ok").slice(0, 5).select(["run_id", "message"]).to_pylist()],
+                 "confidence": confidence, "quantiles": {}, "exceedance": {}, "worst": {},
+                 "relative": [], "plots": []}
+    for name, x in kpis.items():
+        if len(x):
+            rep["quantiles"][name] = {f"{q:g}": bootstrap_quantile(x, q, confidence, rng)[:3]
+                                      for q in qs}
+    ok = status == "ok"
+    rep["verdict_counts"] = {flag: int((~np.array(table[flag].to_pylist(), bool)[ok]).sum())
+                             for flag in ("draft_ok", "buff_ok", "adhesion_ok")}
+    z = _z(confidence)
+    for name, limit in (thresholds or {}).items():
+        x = kpis[name]
+        k, n = int((x > limit).sum()), len(x)
+        rep["exceedance"][name] = {"threshold": limit, "count": k, "of": n,
+                                   "probability": k / n if n else math.nan,
+                                   "interval": _wilson(k, n, z)}
+    cols = ["run_id", "family", "wagons", "speed_kmh", "peak_draft_kN", "peak_draft_coupler",
+            "peak_buff_kN", "peak_buff_coupler", "max_adhesion_demand", "stopping_distance_m"]
+    rows = table.filter(np.array(ok)).select(cols).to_pylist()
+    rep["worst"]["buff"] = sorted(rows, key=lambda r: r["peak_buff_kN"])[:worst]
+    rep["worst"]["draft"] = sorted(rows, key=lambda r: -r["peak_draft_kN"])[:worst]
+    if against is not None:
+        ref_meta, ref_table = read_results(against)
+        ref = _kpis(ref_table)
+        rep["reference"] = ref_meta.get("name", str(against))
+        for name, x in kpis.items():
+            y = ref[name]
+            if not (len(x) and len(y)):
+                continue
+            fx, lo_x, hi_x, rx = bootstrap_quantile(x, quantile, confidence, rng)
+            fy, lo_y, hi_y, ry = bootstrap_quantile(y, quantile, confidence, rng)
+            p_worse = float(np.mean(rx > ry))
+            rep["relative"].append({
+                "kpi": name, "quantile": quantile, "family": fx, "reference": fy,
+                "family_interval": (lo_x, hi_x), "reference_interval": (lo_y, hi_y),
+                "probability_worse": p_worse,
+                "verdict": "FAIL" if p_worse >= confidence else "PASS"})
+    if plots is not None:
+        rep["plots"] = _plots(Path(plots), kpis, ref if against is not None else None,
+                              rep["name"], rep.get("reference"))
+    return rep
+
+
+def _z(confidence: float) -> float:
+    from scipy.special import ndtri
+
+    return float(ndtri(0.5 + confidence / 2.0))
+
+
+def _wilson(k: int, n: int, z: float) -> tuple[float, float]:
+    """Wilson score interval of a proportion k / n."""
+    if n == 0:
+        return (math.nan, math.nan)
+    p = k / n
+    d = 1 + z * z / n
+    c = (p + z * z / (2 * n)) / d
+    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
+    return (max(0.0, c - h), min(1.0, c + h))
+
+
+def _plots(folder: Path, kpis: dict, ref: dict | None, name: str, ref_name: str | None) -> list:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    for kpi, x in kpis.items():
+        label, unit = KPIS[kpi]
+        for kind in ("cdf", "hist"):
+            fig, ax = plt.subplots(figsize=(6, 4))
+            for data, lab in ((x, name), (ref.get(kpi) if ref else None, ref_name)):
+                if data is None or not len(data):
+                    continue
+                if kind == "cdf":
+                    s = np.sort(data)
+                    ax.step(s, np.arange(1, len(s) + 1) / len(s), where="post", label=lab)
+                    ax.set_ylabel("cumulative probability")
+                else:
+                    ax.hist(data, bins=40, alpha=0.6, label=lab)
+                    ax.set_ylabel("runs")
+            ax.set_xlabel(f"{label} [{unit}]")
+            ax.legend()
+            ax.grid(alpha=0.3)
+            path = folder / f"{kind}_{kpi}.png"
+            fig.tight_layout()
+            fig.savefig(path, dpi=90)
+            plt.close(fig)
+            written.append(str(path))
+    return written
+
+
+def format_report(rep: dict) -> str:
+    """The report as text.
+
+    Parameters
+    ----------
+    rep : dict
+        From :func:`campaign_report`.
+
+    Returns
+    -------
+    str
+    """
+    c = rep["confidence"]
+    lines = [f"campaign {rep['name']}: {rep['runs']} of {rep['expected_runs']} runs, "
+             f"{rep['failed']} failed"]
+    lines += [f"  {m}" for m in rep["failures"]]
+    lines.append(f"quantiles (estimate [{100 * c:g} % bootstrap interval]):")
+    for kpi, qs in rep["quantiles"].items():
+        label, unit = KPIS[kpi]
+        cells = "  ".join(f"q{q}: {e:.4g} [{lo:.4g}, {hi:.4g}]" for q, (e, lo, hi) in qs.items())
+        lines.append(f"  {label} [{unit}]  {cells}")
+    vc = rep["verdict_counts"]
+    lines.append(f"verdicts: {vc['draft_ok']} runs beyond the draft strength, {vc['buff_ok']} "
+                 f"beyond the buff strength, {vc['adhesion_ok']} beyond the adhesion limit")
+    for kpi, e in rep["exceedance"].items():
+        lo, hi = e["interval"]
+        lines.append(f"P({kpi} > {e['threshold']:g}) = {e['probability']:.4g} "
+                     f"({e['count']}/{e['of']}; [{lo:.4g}, {hi:.4g}])")
+    for which, rows in rep["worst"].items():
+        lines.append(f"worst runs by {which}:")
+        for r in rows:
+            lines.append(f"  run {r['run_id']}: {r['family']}, {r['wagons']} wagons, "
+                         f"{r['speed_kmh']:.1f} km/h, draft {r['peak_draft_kN']:.0f} kN "
+                         f"@{r['peak_draft_coupler']}, buff {r['peak_buff_kN']:.0f} kN "
+                         f"@{r['peak_buff_coupler']}, adhesion {r['max_adhesion_demand']:.3f}")
+    if rep["relative"]:
+        lines.append(f"relative approach against {rep['reference']}:")
+        for v in rep["relative"]:
+            label, unit = KPIS[v["kpi"]]
+            lines.append(f"  {v['verdict']}  {label} q{v['quantile']:g}: {v['family']:.4g} vs "
+                         f"{v['reference']:.4g} {unit}, P(family worse) = "
+                         f"{v['probability_worse']:.3f}")
+    for p in rep["plots"]:
+        lines.append(f"plot: {p}")
+    return "\n".join(lines)

@@ -1,0 +1,320 @@
+"""Campaign runs: draw run i of a campaign, run it, and summarise it as one table row.
+
+Every random number of run i comes from the campaign seed and i alone (numpy's
+``default_rng([seed, i, stream])``; Latin hypercube columns from ``[seed, dimension]``), so a
+run is the same wherever and in whatever batch it executes.
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+
+import numpy as np
+import pyarrow as pa
+from scipy.special import ndtr, ndtri
+
+from ..inputs import InputError, consist_from_mapping
+from ..inputs.campaign import Campaign, Distribution, fittable_parameters
+from ..inputs.commands import CommandScript
+from ..physics.constants import G
+from ..simulator import SimulationError
+from .runs import emergency_stop, scripted_run
+
+__all__ = ["KPI_FIELDS", "dimensions", "draw", "inverse_cdf", "run_batch", "run_one",
+           "schema_of"]
+
+#: Simulated time per chunk [s]: the adhesion demand is sampled at chunk ends.
+CHUNK_S = 0.5
+#: Stream numbers of ``default_rng([seed, run, stream])``.
+_RUN_STREAM, _WAGON_STREAM = 0, 1
+
+
+def inverse_cdf(dist: Distribution, u: float) -> float:
+    """The value of ``dist`` at cumulative probability ``u``.
+
+    Parameters
+    ----------
+    dist : Distribution
+    u : float
+        Probability in [0, 1).
+
+    Returns
+    -------
+    float
+    """
+    kind, v = dist.kind, dist.values
+    if kind == "fixed":
+        return float(v[0])
+    if kind == "uniform":
+        return float(v[0] + u * (v[1] - v[0]))
+    if kind == "normal":
+        mean, sd, lo, hi = v
+        p_lo, p_hi = ndtr((lo - mean) / sd), ndtr((hi - mean) / sd)
+        return float(min(max(mean + sd * ndtri(p_lo + u * (p_hi - p_lo)), lo), hi))
+    n = (len(v) + 1) // 2
+    edges, weights = np.array(v[:n]), np.array(v[n:])
+    cdf = np.concatenate(([0.0], np.cumsum(weights) / weights.sum()))
+    return float(np.interp(u, cdf, edges))
+
+
+def _choose(weights, u: float) -> int:
+    """Index drawn with relative ``weights`` at probability ``u``."""
+    cdf = np.cumsum(weights) / np.sum(weights)
+    return int(min(np.searchsorted(cdf, u, side="right"), len(cdf) - 1))
+
+
+def _whole(lo: int, hi: int, u: float) -> int:
+    """Whole number in [lo, hi] drawn uniformly at probability ``u``."""
+    return min(lo + int(u * (hi - lo + 1)), hi)
+
+
+def dimensions(c: Campaign) -> tuple[str, ...]:
+    """Names of the run-level draws (the Latin hypercube's dimensions), in draw order."""
+    return ("family", "size", "locomotives", "speed_kmh", "coupler", "brake_params",
+            *sorted(c.uncertainties))
+
+
+@functools.lru_cache(maxsize=4)
+def _hypercube(seed: int, runs: int, dims: int) -> np.ndarray:
+    """Latin hypercube design, (runs, dims) probabilities: one run per stratum per dimension."""
+    out = np.empty((runs, dims))
+    for d in range(dims):
+        rng = np.random.default_rng([seed, d])
+        out[:, d] = (rng.permutation(runs) + rng.random(runs)) / runs
+    return out
+
+
+def _unit_draws(c: Campaign, run_id: int) -> np.ndarray:
+    dims = len(dimensions(c))
+    if c.sampling == "latin_hypercube":
+        return _hypercube(c.seed, c.runs, dims)[run_id]
+    return np.random.default_rng([c.seed, run_id, _RUN_STREAM]).random(dims)
+
+
+def draw(c: Campaign, run_id: int) -> tuple[dict, dict]:
+    """Compose run ``run_id`` of a campaign.
+
+    Parameters
+    ----------
+    c : Campaign
+    run_id : int
+        0 <= run_id < c.runs.
+
+    Returns
+    -------
+    sample : dict
+        Every drawn quantity (the row's input columns).
+    consist_data : dict
+        The consist document of the train (see
+        :func:`~ltd_brake_ros.inputs.consist_from_mapping`).
+    """
+    u = dict(zip(dimensions(c), _unit_draws(c, run_id)))
+    fam = c.families[_choose([f.weight for f in c.families], u["family"])]
+    rng = np.random.default_rng([c.seed, run_id, _WAGON_STREAM])
+    loco = fam.locomotives
+    n_loco = _whole(*loco.count, u["locomotives"])
+    lengths = c.vehicle_lengths_m
+    target_m = inverse_cdf(Distribution("uniform", fam.length_m), u["size"]) if fam.length_m \
+        else None
+    n_target = _whole(*fam.wagons, u["size"]) if fam.wagons else None
+    length_m = n_loco * lengths[loco.type]
+    wagons, codes, masses = [], [], []
+    shares = [w.share for w in fam.wagon_types]
+    while True:
+        # five numbers per wagon, always drawn, so that each wagon's draws stay in step
+        r_type, r_loaded, r_payload, r_g, r_iso = rng.random(5)
+        wt = fam.wagon_types[_choose(shares, r_type)]
+        if n_target is not None and len(wagons) >= n_target:
+            break
+        if target_m is not None and wagons and length_m + lengths[wt.type] > target_m:
+            break
+        loaded = r_loaded < wt.loaded_fraction
+        mass = wt.tare_t + (inverse_cdf(wt.payload_t, r_payload) if loaded else 0.0)
+        entry = {"type": wt.type, "mass_t": mass,
+                 "brake_position": "G" if r_g < fam.g_fraction else "P"}
+        isolated = r_iso < fam.isolated_fraction
+        if isolated:
+            entry["brake"] = {"type": "none"}
+        wagons.append(entry)
+        masses.append(mass)
+        codes.append("x" if isolated else entry["brake_position"] + ("L" if loaded else "E"))
+        length_m += lengths[wt.type]
+    head = [{"type": loco.type} for p in loco.positions[:n_loco] if p == "head"]
+    middle = [{"type": loco.type} for p in loco.positions[:n_loco] if p == "middle"]
+    tail = [{"type": loco.type} for p in loco.positions[:n_loco] if p == "tail"]
+    half = len(wagons) // 2
+    vehicles = head + wagons[:half] + middle + wagons[half:] + tail
+    sample = {
+        "family": fam.name, "wagons": len(wagons), "locomotives": n_loco,
+        "locomotive_positions": ",".join(loco.positions[:n_loco]),
+        "speed_kmh": inverse_cdf(c.manoeuvre.speed_kmh, u["speed_kmh"]),
+        "coupler": c.couplers[_choose([v.weight for v in c.couplers], u["coupler"])].name,
+        "brake_params": c.brake_params[_choose([v.weight for v in c.brake_params],
+                                               u["brake_params"])].name,
+        "wagon_mass_t": masses, "wagon_brakes": " ".join(codes),
+        "loaded_wagons": sum(c.endswith("L") for c in codes),
+        "g_wagons": sum(c.startswith("G") for c in codes),
+        "isolated_wagons": codes.count("x"),
+    }
+    for name in sorted(c.uncertainties):
+        sample[name] = inverse_cdf(c.uncertainties[name], u[name])
+    return sample, {"name": f"{c.name} run {run_id}", "vehicle_types": c.vehicle_types,
+                    "vehicles": vehicles}
+
+
+def _models(c: Campaign, sample: dict):
+    """Brake and coupler parameters of a run, with its uncertain parameters set."""
+    params = next(v.params for v in c.brake_params if v.name == sample["brake_params"])
+    lut = next(v.params for v in c.couplers if v.name == sample["coupler"])
+    known = fittable_parameters()
+    brake_values, coupler_values = {}, {}
+    for name in sorted(c.uncertainties):
+        part, fit = known[name]
+        target = brake_values if part == "brake" else coupler_values
+        if part == "brake" and (hasattr(params.pneumatic, fit.field)
+                                or hasattr(params.friction, fit.field)):
+            target[fit.field] = sample[name]
+        elif part == "coupler" and hasattr(lut, fit.field):
+            target[fit.field] = sample[name]
+    if brake_values:
+        params = dataclasses.replace(params, **brake_values)
+    if coupler_values:
+        lut = dataclasses.replace(lut, **coupler_values)
+    return params, lut
+
+
+#: The KPI columns of a row (units in the names).
+KPI_FIELDS = (
+    ("train_mass_t", pa.float64()), ("train_length_m", pa.float64()),
+    ("braked_weight_percent", pa.float64()),
+    ("stopping_distance_m", pa.float64()), ("stop_time_s", pa.float64()),
+    ("peak_draft_kN", pa.float64()), ("peak_draft_coupler", pa.int32()),
+    ("peak_draft_time_s", pa.float64()),
+    ("peak_buff_kN", pa.float64()), ("peak_buff_coupler", pa.int32()),
+    ("peak_buff_time_s", pa.float64()),
+    ("max_adhesion_demand", pa.float64()), ("max_adhesion_vehicle", pa.int32()),
+    ("draft_ok", pa.bool_()), ("buff_ok", pa.bool_()), ("adhesion_ok", pa.bool_()),
+    ("steps", pa.int64()), ("newton_iterations", pa.int64()),
+    ("newton_iterations_per_step", pa.float64()), ("max_newton_iterations", pa.int32()),
+    ("couplers_beyond_lut", pa.int32()),
+)
+
+
+def schema_of(c: Campaign) -> pa.Schema:
+    """The Parquet schema of a campaign's rows.
+
+    Parameters
+    ----------
+    c : Campaign
+
+    Returns
+    -------
+    pyarrow.Schema
+    """
+    head = [("run_id", pa.int64()), ("seed", pa.int64()), ("status", pa.string()),
+            ("message", pa.string()), ("family", pa.string()), ("wagons", pa.int32()),
+            ("locomotives", pa.int32()), ("locomotive_positions", pa.string()),
+            ("speed_kmh", pa.float64()), ("coupler", pa.string()), ("brake_params", pa.string()),
+            ("wagon_mass_t", pa.list_(pa.float64())), ("wagon_brakes", pa.string()),
+            ("loaded_wagons", pa.int32()), ("g_wagons", pa.int32()),
+            ("isolated_wagons", pa.int32())]
+    unc = [(name, pa.float64()) for name in sorted(c.uncertainties)]
+    return pa.schema(head + unc + list(KPI_FIELDS))
+
+
+def run_one(c: Campaign, run_id: int) -> dict:
+    """Draw and run one run of a campaign; a failure becomes a row with its message.
+
+    Parameters
+    ----------
+    c : Campaign
+    run_id : int
+
+    Returns
+    -------
+    dict
+        One row (see :func:`schema_of`); ``status`` is ``ok`` or ``failed``.
+    """
+    row: dict = {"run_id": run_id, "seed": c.seed, "status": "ok", "message": ""}
+    try:
+        sample, data = draw(c, run_id)
+        row.update(sample)
+        consist = consist_from_mapping(data, f"{c.source} run {run_id}")
+        params, lut = _models(c, sample)
+        row.update(_simulate(c, consist, sample["speed_kmh"], params, lut))
+    except (InputError, SimulationError, ValueError, ArithmeticError) as exc:
+        row["status"], row["message"] = "failed", f"{type(exc).__name__}: {exc}"
+    return row
+
+
+def _simulate(c: Campaign, consist, speed_kmh: float, params, lut) -> dict:
+    """KPIs of one run of the campaign's manoeuvre."""
+    weight_N = np.array([v.mass_kg for v in consist.vehicles]) * G
+    adhesion = {"value": 0.0, "vehicle": 0}
+
+    def watch(snap) -> None:
+        demand = snap.brake_force_N / weight_N
+        i = int(np.argmax(demand))
+        if demand[i] > adhesion["value"]:
+            adhesion["value"], adhesion["vehicle"] = float(demand[i]), i + 1
+
+    m = c.manoeuvre
+    if m.kind == "emergency":
+        r = emergency_stop(consist, speed_kmh, params, lut, step_s=c.step_s, chunk_s=CHUNK_S,
+                           on_chunk=watch)
+        out = {k: getattr(r, k) for k in (
+            "train_mass_t", "train_length_m", "braked_weight_percent", "stopping_distance_m",
+            "stop_time_s", "peak_draft_kN", "peak_draft_coupler", "peak_draft_time_s",
+            "peak_buff_kN", "peak_buff_coupler", "peak_buff_time_s", "steps",
+            "newton_iterations", "newton_iterations_per_step", "max_newton_iterations",
+            "couplers_beyond_lut")}
+    else:
+        if m.kind == "service":
+            steps = [(0.0, {"brake_demand": m.demand})]
+            if m.release_s < m.duration_s:
+                steps.append((m.release_s, {"brake_demand": 0.0}))
+        else:
+            steps = [(0.0, {"traction": m.demand})]
+        sim = scripted_run(consist, speed_kmh, CommandScript(tuple(steps), m.duration_s),
+                           params, lut, step_s=c.step_s, chunk_s=CHUNK_S, on_chunk=watch)
+        peaks = sim.coupler_peaks()
+        stopped = sim.stopping_distance_m is not None
+        out = {"train_mass_t": consist.mass_kg / 1e3, "train_length_m": consist.length_m,
+               "braked_weight_percent": sim.braked_weight_percent(),
+               "stopping_distance_m": sim.stopping_distance_m if stopped else math.nan,
+               "stop_time_s": (sim.stop_time_s - (sim.command_time_s or 0.0)) if stopped
+               else math.nan,
+               "peak_draft_kN": peaks.draft_N / 1e3, "peak_draft_coupler": peaks.draft_coupler,
+               "peak_draft_time_s": peaks.draft_time_s, "peak_buff_kN": peaks.buff_N / 1e3,
+               "peak_buff_coupler": peaks.buff_coupler, "peak_buff_time_s": peaks.buff_time_s,
+               "steps": sim.steps, "newton_iterations": sim.newton_iterations,
+               "newton_iterations_per_step": sim.newton_iterations / max(sim.steps, 1),
+               "max_newton_iterations": sim.max_newton_iterations,
+               "couplers_beyond_lut": sim.coupler_excursions().count}
+    out["max_adhesion_demand"] = adhesion["value"]
+    out["max_adhesion_vehicle"] = adhesion["vehicle"]
+    out["draft_ok"] = out["peak_draft_kN"] * 1e3 <= lut.draft_strength_N
+    out["buff_ok"] = -out["peak_buff_kN"] * 1e3 <= lut.buff_strength_N
+    out["adhesion_ok"] = adhesion["value"] <= c.adhesion_limit
+    return out
+
+
+def run_batch(c: Campaign, batch: int) -> pa.Table:
+    """Run batch ``batch`` (runs ``batch * batch_size`` onwards) into a table.
+
+    Parameters
+    ----------
+    c : Campaign
+    batch : int
+
+    Returns
+    -------
+    pyarrow.Table
+        One row per run, in run order, with :func:`schema_of`.
+    """
+    first = batch * c.batch_size
+    rows = [run_one(c, i) for i in range(first, min(first + c.batch_size, c.runs))]
+    schema = schema_of(c)
+    return pa.Table.from_pylist([{k: r.get(k) for k in schema.names} for r in rows],
+                                schema=schema)
