@@ -11,11 +11,11 @@ import os
 import sys
 
 from ..inputs import InputError
-from . import calibrate, recover, report, simulate, validate
+from . import calibrate, campaign, recover, report, simulate, validate
 from .options import CONVENTIONS
 
 #: The verbs in the order ``ltd-brake --help`` lists them.
-VERBS = (simulate, validate, calibrate, report, recover)
+VERBS = (simulate, validate, calibrate, report, recover, campaign)
 
 
 def build_parser() -> argparse.ArgumentParser:
