@@ -200,3 +200,22 @@ def test_cli_bad_files_exit_cleanly(tmp_path, args, label):
     assert "Traceback" not in r.stderr
     assert r.stdout == ""  # no partial output
     assert len(r.stderr.strip().splitlines()) == 1  # one clear message
+
+
+YAML_ALPHABET = "[]{}:,&*!|>-?'\"#%@`~.\n\t 0123456789abexyz_+"
+
+
+@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(text=st.text(alphabet=YAML_ALPHABET, max_size=200) | st.binary(max_size=200))
+def test_any_text_is_a_document_or_one_input_error(tmp_path_factory, text):
+    from ltd_brake_ros.inputs import load_yaml
+
+    p = tmp_path_factory.mktemp("fuzz") / "any.yaml"
+    if isinstance(text, bytes):
+        p.write_bytes(text)
+    else:
+        p.write_text(text)
+    try:
+        load_yaml(p)
+    except InputError as exc:
+        assert str(exc).startswith(str(p)) and "\n" not in str(exc)
