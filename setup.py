@@ -40,6 +40,8 @@ setup(
             "ros-jazzy-rosgraph-msgs>=2.0,<3",
             "ros-jazzy-rmw-fastrtps-cpp>=8.4,<9",
         ],
+        # ltd-brake campaign: Dask distributed executor and Parquet results
+        "campaign": ["dask[distributed]>=2024.1", "pyarrow>=14"],
         "test": ["pytest>=8", "pytest-timeout>=2.3", "hypothesis>=6.100", "rosbags>=0.10",
                  "mcap-ros2-support>=0.5"],
     },

@@ -1,0 +1,113 @@
+"""Campaign runs: one row per run whatever the executor, failures recorded, resume after a kill."""
+from __future__ import annotations
+
+import signal
+import time
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from campaign_helpers import write_campaign
+from conftest import executable
+
+from ltd_brake_ros.inputs.campaign import load_campaign
+from ltd_brake_ros.physics.constants import G
+from ltd_brake_ros.studies.campaign_exec import (PoolExecutor, SerialExecutor, missing_batches,
+                                                 read_results, run_campaign)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The small campaign run serially: the table every other way must reproduce."""
+    folder = tmp_path_factory.mktemp("reference")
+    c = load_campaign(write_campaign(folder))
+    run_campaign(c, folder / "out", SerialExecutor())
+    return c, read_results(folder / "out")[1]
+
+
+def test_serial_table_holds_every_run_once_with_physical_kpis(reference):
+    c, table = reference
+    assert table["run_id"].to_pylist() == list(range(c.runs))
+    assert set(table["status"].to_pylist()) == {"ok"}
+    rows = table.to_pylist()
+    for r in rows:
+        assert r["wagons"] == len(r["wagon_brakes"].split()) == len(r["wagon_mass_t"])
+        # stopping distance between v^2 / (2 * 1 g) (wheel/rail adhesion bound) and the
+        # distance at constant speed for the stop time
+        v = r["speed_kmh"] / 3.6
+        assert v ** 2 / (2 * G) < r["stopping_distance_m"] < v * r["stop_time_s"]
+        assert 0.0 < r["max_adhesion_demand"] < 1.0
+        assert r["adhesion_ok"] == (r["max_adhesion_demand"] <= c.adhesion_limit)
+        assert r["buff_ok"] == (-r["peak_buff_kN"] <= 2000.0)
+        assert r["newton_iterations"] >= r["steps"] > 0
+
+
+def test_process_pool_gives_the_identical_table(reference, tmp_path):
+    c, table = reference
+    with PoolExecutor(2) as pool:
+        summary = run_campaign(c, tmp_path / "pool", pool)
+    assert summary == {"batches": c.batches, "runs": c.runs, "failed": 0, "skipped": 0}
+    assert read_results(tmp_path / "pool")[1].equals(table)
+
+
+def test_resume_runs_only_missing_batches(reference, tmp_path):
+    c, table = reference
+    run_campaign(c, tmp_path / "out")
+    (tmp_path / "out" / "batches" / "batch-0000003.parquet").unlink()
+    assert missing_batches(c, tmp_path / "out") == [3]
+    summary = run_campaign(c, tmp_path / "out")
+    assert summary["batches"] == 1 and summary["runs"] == c.batch_size
+    assert read_results(tmp_path / "out")[1].equals(table)
+
+
+def test_another_campaign_cannot_write_into_a_results_folder(reference, tmp_path):
+    c, _ = reference
+    run_campaign(c, tmp_path / "out")
+    other = load_campaign(write_campaign(tmp_path, name="other", runs=10))
+    with pytest.raises(Exception, match="holds results of another campaign"):
+        run_campaign(other, tmp_path / "out")
+
+
+def test_a_failing_run_is_recorded_with_its_message(tmp_path):
+    # a 0.5 t wagon cannot carry the 23 t braked weight of the empty Shimmns: that run fails
+    path = write_campaign(tmp_path, runs=6, batch=3)
+    path.write_text(path.read_text().replace("tare_t: 22.0", "tare_t: 0.5")
+                    .replace("loaded_fraction: 0.7", "loaded_fraction: 0.5"))
+    c = load_campaign(path)
+    summary = run_campaign(c, tmp_path / "out")
+    table = read_results(tmp_path / "out")[1]
+    assert table.num_rows == 6 and summary["failed"] >= 1
+    for r in table.to_pylist():
+        empty = min(r["wagon_mass_t"]) == 0.5 and "E" in r["wagon_brakes"].replace("x", "")
+        if r["status"] == "failed":
+            assert "more than twice the vehicle mass" in r["message"]
+            assert r["stopping_distance_m"] is None
+        else:
+            assert not empty and r["message"] == ""
+
+
+def test_sigkill_of_the_driver_then_resume(reference, tmp_path, processes):
+    c, table = reference
+    path = write_campaign(tmp_path, runs=c.runs * 4, batch=2)
+    out = tmp_path / "out"
+    proc = processes.start(executable("ltd-brake"), "campaign", "run", str(path), "--out",
+                           str(out), "--jobs", "1", "--quiet")
+    deadline = time.monotonic() + 120
+    while len(list((out / "batches").glob("batch-*.parquet"))) < 3:
+        assert proc.popen.poll() is None, proc.output()
+        assert time.monotonic() < deadline, "no batch written within 120 s"
+        time.sleep(0.01)
+    proc.stop(signal.SIGKILL)
+    big = load_campaign(path)
+    left = missing_batches(big, out)
+    assert 0 < len(left) < big.batches, "the kill came too late to test a resume"
+    rerun = processes.start(executable("ltd-brake"), "campaign", "run", str(path), "--out",
+                            str(out), "--jobs", "2", "--quiet")
+    assert rerun.wait(120) == 0, rerun.output()
+    assert f"{len(left)} batches" in rerun.output()
+    done = read_results(out)[1]
+    assert done["run_id"].to_pylist() == list(range(big.runs))
+    # Monte Carlo run i depends on (seed, i) only: the first runs are the reference's
+    assert done.slice(0, c.runs).drop(["run_id"]).equals(table.drop(["run_id"]))
+    for f in (out / "batches").iterdir():
+        assert f.suffix == ".parquet" and pq.read_metadata(f).num_rows == 2
