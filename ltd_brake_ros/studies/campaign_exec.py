@@ -109,9 +109,11 @@ class DaskExecutor(Executor):
     Parameters
     ----------
     address : str
+    timeout_s : float, optional
+        How long to try to reach a scheduler [s].
     """
 
-    def __init__(self, address: str):
+    def __init__(self, address: str, timeout_s: float = 30.0):
         from distributed import Client, LocalCluster
 
         self.cluster = None
@@ -127,7 +129,7 @@ class DaskExecutor(Executor):
             self.client = Client(self.cluster)
         else:
             try:
-                self.client = Client(address, timeout=30)
+                self.client = Client(address, timeout=timeout_s)
             except (OSError, TimeoutError, ValueError) as exc:
                 raise InputError("--dask", "", f"cannot reach the Dask scheduler at {address}: "
                                  f"{exc}") from None

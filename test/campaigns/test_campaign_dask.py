@@ -1,0 +1,92 @@
+"""Dask distributed: a LocalCluster of worker processes and a scheduler with two workers started
+with the ``dask`` commands give the process pool's table; a worker killed mid-campaign loses
+nothing and duplicates nothing."""
+from __future__ import annotations
+
+import signal
+
+import pytest
+from campaign_helpers import free_port, write_campaign
+from conftest import executable
+
+from ltd_brake_ros.cli.main import main
+from ltd_brake_ros.inputs import InputError
+from ltd_brake_ros.inputs.campaign import load_campaign
+from ltd_brake_ros.studies.campaign_exec import (DaskExecutor, PoolExecutor, read_results,
+                                                 run_campaign)
+
+@pytest.fixture(scope="module")
+def pool_table(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("pool")
+    path = write_campaign(folder, runs=24, batch=2)
+    with PoolExecutor(2) as pool:
+        run_campaign(load_campaign(path), folder / "out", pool)
+    return path, read_results(folder / "out")[1]
+
+def test_local_cluster_gives_the_pool_table(pool_table, tmp_path, capsys):
+    path, table = pool_table
+    assert main(["campaign", "run", str(path), "--out", str(tmp_path / "out"), "--dask",
+                 "local:2", "--quiet"]) == 0
+    assert "24 runs in 12 batches (0 failed)" in capsys.readouterr().out
+    assert read_results(tmp_path / "out")[1].equals(table)
+
+@pytest.fixture
+def dask_cluster(processes):
+    """``dask scheduler`` and two ``dask worker`` processes on 127.0.0.1, killed at the end."""
+    port = free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    dask = executable("dask")
+    processes.start(dask, "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                    "--no-dashboard", name="scheduler")
+    workers = [processes.start(dask, "worker", address, "--nthreads", "1", "--nworkers", "1",
+                               "--host", "127.0.0.1", "--no-dashboard", name=f"worker{i}")
+               for i in range(2)]
+    return address, workers
+
+def _connected(address: str):
+    executor = DaskExecutor(address)
+    executor.client.wait_for_workers(2, timeout=60)
+    executor.workers = 2
+    return executor
+
+def test_scheduler_and_two_workers_give_the_pool_table(pool_table, dask_cluster, tmp_path):
+    path, table = pool_table
+    address, _ = dask_cluster
+    with _connected(address) as executor:
+        run_campaign(load_campaign(path), tmp_path / "out", executor)
+        assert len(executor.client.scheduler_info()["workers"]) == 2
+    assert read_results(tmp_path / "out")[1].equals(table)
+
+def test_a_killed_worker_loses_and_duplicates_nothing(pool_table, dask_cluster, tmp_path):
+    path, table = pool_table
+    address, workers = dask_cluster
+    killed = []
+
+    def kill_after_first_batch(runs: int, failed: int) -> None:
+        if not killed:
+            workers[0].kill()  # SIGKILL of the worker and its nanny
+            killed.append(True)
+
+    with _connected(address) as executor:
+        summary = run_campaign(load_campaign(path), tmp_path / "out", executor,
+                               progress=kill_after_first_batch)
+        assert len(executor.client.scheduler_info()["workers"]) == 1
+    assert killed and summary["runs"] == 24
+    done = read_results(tmp_path / "out")[1]
+    assert done["run_id"].to_pylist() == list(range(24))
+    assert done.equals(table)
+
+def test_unreachable_scheduler_names_the_option():
+    port = free_port()
+    with pytest.raises(InputError, match=rf"^--dask: cannot reach the Dask scheduler at "
+                                         rf"tcp://127.0.0.1:{port}"):
+        DaskExecutor(f"tcp://127.0.0.1:{port}", timeout_s=1.0)
+
+
+def test_bad_local_cluster_size_is_one_line(tmp_path, capsys):
+    path = write_campaign(tmp_path)
+    assert main(["campaign", "run", str(path), "--out", str(tmp_path / "out"), "--dask",
+                 "local:zero"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "ltd-brake campaign: error: --dask: local:N needs a worker count >= 1, " \
+                  "got 'local:zero'"
