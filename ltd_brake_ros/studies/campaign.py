@@ -17,6 +17,7 @@ from scipy.special import ndtr, ndtri
 from ..inputs import InputError, consist_from_mapping
 from ..inputs.campaign import Campaign, Distribution, fittable_parameters
 from ..inputs.commands import CommandScript
+from ..physics.brakes import friction
 from ..physics.constants import G
 from ..simulator import SimulationError
 from .runs import emergency_stop, scripted_run
@@ -24,8 +25,11 @@ from .runs import emergency_stop, scripted_run
 __all__ = ["KPI_FIELDS", "dimensions", "draw", "inverse_cdf", "run_batch", "run_one",
            "schema_of"]
 
-#: Simulated time per chunk [s]: the adhesion demand is sampled at chunk ends.
-CHUNK_S = 0.5
+#: Simulated time per chunk of an emergency stop [s] (as :func:`.runs.emergency_stop`).
+CHUNK_S = 1.0
+#: Command-update interval of service and traction runs [s]; their adhesion demand is
+#: sampled at these instants.
+SCRIPT_CHUNK_S = 0.5
 #: Stream numbers of ``default_rng([seed, run, stream])``.
 _RUN_STREAM, _WAGON_STREAM = 0, 1
 
@@ -251,13 +255,16 @@ def run_one(c: Campaign, run_id: int) -> dict:
 def _simulate(c: Campaign, consist, speed_kmh: float, params, lut) -> dict:
     """KPIs of one run of the campaign's manoeuvre."""
     weight_N = np.array([v.mass_kg for v in consist.vehicles]) * G
-    adhesion = {"value": 0.0, "vehicle": 0}
+    adhesion = {"value": 0.0, "vehicle": 0, "last": None}
 
-    def watch(snap) -> None:
-        demand = snap.brake_force_N / weight_N
+    def note(demand: np.ndarray) -> None:
         i = int(np.argmax(demand))
         if demand[i] > adhesion["value"]:
             adhesion["value"], adhesion["vehicle"] = float(demand[i]), i + 1
+
+    def watch(snap) -> None:
+        note(snap.brake_force_N / weight_N)
+        adhesion["last"] = snap
 
     m = c.manoeuvre
     if m.kind == "emergency":
@@ -269,6 +276,11 @@ def _simulate(c: Campaign, consist, speed_kmh: float, params, lut) -> dict:
             "peak_buff_kN", "peak_buff_coupler", "peak_buff_time_s", "steps",
             "newton_iterations", "newton_iterations_per_step", "max_newton_iterations",
             "couplers_beyond_lut")}
+        # Under an emergency application the block force only rises (the brake-model
+        # contract) and Karwatzki's speed factor grows as the speed falls (Eq. 8), so every
+        # vehicle's brake force peaks just before standstill: its limit at v -> 0 with the
+        # block force at the stop (taken at the end of the last chunk, never smaller).
+        note(_standstill_brake_force_N(consist, params, adhesion["last"]) / weight_N)
     else:
         if m.kind == "service":
             steps = [(0.0, {"brake_demand": m.demand})]
@@ -277,7 +289,8 @@ def _simulate(c: Campaign, consist, speed_kmh: float, params, lut) -> dict:
         else:
             steps = [(0.0, {"traction": m.demand})]
         sim = scripted_run(consist, speed_kmh, CommandScript(tuple(steps), m.duration_s),
-                           params, lut, step_s=c.step_s, chunk_s=CHUNK_S, on_chunk=watch)
+                           params, lut, step_s=c.step_s, chunk_s=SCRIPT_CHUNK_S,
+                           on_chunk=watch)
         peaks = sim.coupler_peaks()
         stopped = sim.stopping_distance_m is not None
         out = {"train_mass_t": consist.mass_kg / 1e3, "train_length_m": consist.length_m,
@@ -298,6 +311,15 @@ def _simulate(c: Campaign, consist, speed_kmh: float, params, lut) -> dict:
     out["buff_ok"] = -out["peak_buff_kN"] * 1e3 <= lut.buff_strength_N
     out["adhesion_ok"] = adhesion["value"] <= c.adhesion_limit
     return out
+
+
+def _standstill_brake_force_N(consist, params, snap) -> np.ndarray:
+    """Each vehicle's brake force as its speed tends to 0 at the snapshot's block forces [N]."""
+    fr = friction.compile(consist, params.friction)
+    return np.array([friction.retarding_force(
+        fr.kind[i], 0.0, friction.force_scale(fr.kind[i], fr.blocks[i], fr.arrangement[i],
+                                              fr.mu_disc[i], snap.block_force_N[i]))[0]
+        for i in range(consist.n)])
 
 
 def run_batch(c: Campaign, batch: int) -> pa.Table:
