@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from ..physics import brakes, couplers
+from ..physics.parameters import out_of_range
 from .brake_params import BrakeParams, load_brake_params
 from .consist import MAX_VEHICLES, consist_from_mapping
 from .couplers import load_coupler_lut
@@ -298,9 +299,10 @@ def _distribution(f: Fields, name: str, *, lo: float | None = None, hi: float | 
                       f"{max(len(edges) - 1, 0)} bins, got {len(weights)} weights")
     if any(b <= a for a, b in zip(edges, edges[1:])):
         raise h.error("edges", "must increase strictly")
-    for i, e in enumerate((edges[0], edges[-1])):
-        if (lo is not None and e < lo) or (hi is not None and e > hi):
-            raise h.error("edges", f"{e:g} lies outside [{lo}, {hi}]")
+    for e in (edges[0], edges[-1]):
+        reason = out_of_range(e, lo, hi)
+        if reason:
+            raise h.error("edges", reason)
     if any(w < 0 for w in weights) or sum(weights) <= 0:
         raise h.error("weights", "must be >= 0 with a positive sum")
     return Distribution("histogram", tuple(edges) + tuple(weights))
@@ -313,9 +315,9 @@ def _pair(f: Fields, name: str, lo: float | None, hi: float | None) -> tuple[flo
         raise f.error(name, f"must be [smallest, largest], got {len(values)} numbers")
     a, b = values
     for x in values:
-        if (lo is not None and x < lo) or (hi is not None and x > hi):
-            raise f.error(name, f"{x:g} lies outside [{lo:g}, {hi:g}]" if lo is not None and
-                          hi is not None else f"{x:g} is out of range")
+        reason = out_of_range(x, lo, hi)
+        if reason:
+            raise f.error(name, reason)
     if a > b:
         raise f.error(name, f"smallest ({a:g}) exceeds largest ({b:g})")
     return a, b

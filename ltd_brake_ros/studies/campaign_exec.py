@@ -25,6 +25,7 @@ import pyarrow.parquet as pq
 
 from ..inputs import InputError
 from ..inputs.campaign import Campaign
+from ..simulator import SimulationError
 from .campaign import run_batch, schema_of
 from .parallel import default_workers, process_pool
 
@@ -76,7 +77,7 @@ class PoolExecutor(Executor):
         self.workers = max(1, int(workers))
 
     def map_batches(self, c, batches):
-        pending = list(batches)
+        pending = dict.fromkeys(batches)  # in order
         tries = 0
         while pending:
             with process_pool(self.workers) as pool:
@@ -91,13 +92,17 @@ class PoolExecutor(Executor):
                         for fut in done:
                             b = running.pop(fut)
                             table = fut.result()
-                            pending.remove(b)
+                            del pending[b]
                             yield b, table
-                except BrokenProcessPool:
+                except BaseException as exc:
+                    # interrupted (Ctrl-C) or a worker died: drop the batches not started
+                    pool.shutdown(wait=False, cancel_futures=True)
+                    if not isinstance(exc, BrokenProcessPool):
+                        raise
                     tries += 1
                     if tries > MAX_RETRIES:
-                        raise RuntimeError(f"worker processes died {tries} times; "
-                                           f"{len(pending)} batches not run") from None
+                        raise SimulationError(f"worker processes died {tries} times; "
+                                              f"{len(pending)} batches not run") from None
 
 
 class DaskExecutor(Executor):

@@ -21,8 +21,8 @@ def test_shipped_example_loads():
 BAD = [
     ("Shimmns:", "Shimmx:", "families[0].wagon_types.Shimmx", "unknown vehicle type"),
     ("edges: [20.0, 40.0, 58.0]", "edges: [-5.0, 40.0, 58.0]",
-     "families[0].wagon_types.Shimmns.payload_t.histogram.edges", "outside"),
-    ("sd: 0.1", "sd: .nan", "uncertainties.k0.normal.sd", ""),
+     "families[0].wagon_types.Shimmns.payload_t.histogram.edges", "must be >= 0, got -5"),
+    ("sd: 0.1", "sd: .nan", "uncertainties.k0.normal.sd", "must be finite"),
     ("runs: 16", "runs: 0", "runs", "between"),
     ("wagons: [3, 5]", "length_m: [2.0, 5.0]", "families[0].length_m", "no train fits"),
     ("wagons: [3, 5]", "wagons: [5, 3]", "families[0].wagons", "exceeds"),

@@ -155,3 +155,22 @@ def test_service_and_traction_manoeuvres(tmp_path, manoeuvre, stops):
         if c.manoeuvre.kind == "traction_start":
             # pulling away from rest: the couplers behind the locomotive are in draft
             assert r["peak_draft_kN"] > 10.0 and r["max_adhesion_demand"] == 0.0
+
+
+def test_a_killed_pool_worker_has_its_batches_redone(reference, tmp_path):
+    import psutil
+
+    c, table = reference
+    killed = []
+
+    def kill_a_worker(runs: int, failed: int) -> None:
+        if not killed:
+            worker = psutil.Process().children()[0]
+            worker.kill()
+            worker.wait(10)
+            killed.append(worker.pid)
+
+    with PoolExecutor(2) as pool:
+        summary = run_campaign(c, tmp_path / "out", pool, progress=kill_a_worker)
+    assert killed and summary["runs"] == c.runs
+    assert read_results(tmp_path / "out")[1].equals(table)
