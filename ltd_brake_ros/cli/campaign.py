@@ -46,8 +46,22 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
+def _require_extra(dask: bool = False) -> None:
+    """One line instead of a traceback when the ``campaign`` extra is not installed."""
+    from importlib.util import find_spec
+
+    from ..inputs import InputError
+
+    missing = [m for m in ("pyarrow",) + (("distributed",) if dask else ())
+               if find_spec(m) is None]
+    if missing:
+        raise InputError(" and ".join(missing), "", "not installed; campaigns need it: pip "
+                         "install 'ltd_brake_ros[campaign]'")
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the missing batches of a campaign."""
+    _require_extra(dask=bool(args.dask))
     from tqdm import tqdm
 
     from ..inputs.campaign import load_campaign
@@ -79,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
 
 def report(args: argparse.Namespace) -> int:
     """Print the campaign report."""
+    _require_extra()
     import json
 
     from ..analysis.campaign_report import campaign_report, format_report, parse_thresholds

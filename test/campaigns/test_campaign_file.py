@@ -86,3 +86,17 @@ def test_draws_follow_the_family(tmp_path):
     assert np.mean(masses > 22.0) == pytest.approx(0.7, abs=0.06)
     # a run is the same whenever it is drawn
     assert draw(c, 17) == draw(c, 17)
+
+
+def test_missing_extra_is_one_line(tmp_path, capsys, monkeypatch):
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "distributed" else real(name, *a))
+    path = write_campaign(tmp_path)
+    assert main(["campaign", "run", str(path), "--out", str(tmp_path / "o"), "--dask",
+                 "local:1"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "ltd-brake campaign: error: distributed: not installed; campaigns need it: "
+        "pip install 'ltd_brake_ros[campaign]'")
