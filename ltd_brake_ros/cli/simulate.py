@@ -39,8 +39,10 @@ def run(args: argparse.Namespace) -> int:
         return _run_script(args, spec)
     params, lut = spec.params, spec.lut
     events = []
-    res = emergency_stop(spec.consist, spec.speed_kmh, params, lut, spec.track,
-                         step_s=args.step_s, on_chunk=lambda s: events.extend(s.events))
+    with _Progress() as progress:
+        res = emergency_stop(spec.consist, spec.speed_kmh, params, lut, spec.track,
+                             step_s=args.step_s, on_chunk=lambda s: events.extend(s.events),
+                             progress=progress)
     lut_events = [e for e in events if e.kind == "coupler_out_of_lut"]
     if args.json:
         out = res.as_dict()
@@ -58,11 +60,8 @@ def run(args: argparse.Namespace) -> int:
           f"(t = {res.peak_draft_time_s:.2f} s)")
     print(f"peak buff        {res.peak_buff_kN:.1f} kN at coupler {res.peak_buff_coupler} "
           f"(t = {res.peak_buff_time_s:.2f} s)")
-    for e in lut_events:
-        print(f"warning          {e.describe()}")
-    if res.couplers_beyond_lut:
-        print(f"warning          {res.couplers_beyond_lut} couplers left the coupler table, "
-              f"by up to {res.max_beyond_lut_mm:.1f} mm")
+    if res.out_of_range.count:
+        print(f"warning          {res.out_of_range.describe()}")
     print(f"cost             {res.wall_time_s * 1e3:.0f} ms wall, {res.real_time_factor:.0f}x "
           f"real time, {res.steps} steps, {res.newton_iterations_per_step:.2f} Newton "
           "iterations per step")
@@ -81,8 +80,10 @@ def _run_script(args: argparse.Namespace, spec) -> int:
     events = []
 
     start = time.perf_counter()
-    sim = scripted_run(spec.consist, spec.speed_kmh, script, spec.params, spec.lut, spec.track,
-                       step_s=args.step_s, on_chunk=lambda s: events.extend(s.events))
+    with _Progress() as progress:
+        sim = scripted_run(spec.consist, spec.speed_kmh, script, spec.params, spec.lut,
+                           spec.track, step_s=args.step_s,
+                           on_chunk=lambda s: events.extend(s.events), progress=progress)
     wall = time.perf_counter() - start
     snap = sim.snapshot()
     peaks = sim.coupler_peaks()
@@ -106,8 +107,42 @@ def _run_script(args: argparse.Namespace, spec) -> int:
     print(f"ran              {sim.time_s:.1f} s, {out['distance_travelled_m']:.1f} m, final "
           f"speed {out['final_speed_kmh']:.1f} km/h")
     for e in events:
-        print(f"event            {e.describe()}")
+        if e.kind != "coupler_out_of_lut":
+            print(f"event            {e.describe()}")
+    beyond = sim.coupler_excursions()
+    if beyond.count:
+        print(f"warning          {beyond.describe()}")
     print(f"peak draft       {out['peak_draft_kN']:.1f} kN at coupler {peaks.draft_coupler}")
     print(f"peak buff        {out['peak_buff_kN']:.1f} kN at coupler {peaks.buff_coupler}")
     print(f"cost             {wall * 1e3:.0f} ms wall, {out['real_time_factor']:.0f}x real time")
     return 0
+
+
+class _Progress:
+    """Progress of a long run on stderr (a terminal only, after 2 s of wall time)."""
+
+    #: Wall time before progress is shown [s].
+    AFTER_S = 2.0
+
+    def __init__(self):
+        import sys
+
+        self._stream = sys.stderr
+        self._shown = False
+        self._enabled = self._stream.isatty()
+
+    def __enter__(self) -> "_Progress":
+        return self
+
+    def __call__(self, p) -> None:
+        if not self._enabled or p.wall_s < self.AFTER_S:
+            return
+        done = f" ({100.0 * p.fraction:.0f} %)" if p.fraction is not None else ""
+        self._stream.write(f"\r  simulated {p.time_s:.0f} s{done}, {p.wall_s:.0f} s wall ")
+        self._stream.flush()
+        self._shown = True
+
+    def __exit__(self, *exc) -> None:
+        if self._shown:
+            self._stream.write("\r\033[K")
+            self._stream.flush()
