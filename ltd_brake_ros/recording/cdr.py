@@ -30,19 +30,36 @@ def decode_float64_array(data: bytes) -> np.ndarray:
     -------
     ndarray
         A read-only view of ``data`` (float64).
+
+    Raises
+    ------
+    ValueError
+        ``data`` is not such a message (too short for what it states).
     """
+    n_bytes = len(data)
+    if n_bytes < 8:
+        raise ValueError(f"{n_bytes} bytes is too short for a Float64MultiArray")
     end = "<" if data[1] & 1 else ">"
     u32 = struct.Struct(end + "I").unpack_from
+
+    def need(pos: int, what: str) -> None:
+        if pos > n_bytes:
+            raise ValueError(f"{what} runs past the end of the {n_bytes}-byte message")
+
     (ndim,) = u32(data, 4)
     pos = 8
     for _ in range(ndim):
         pos = _align(pos, 4)
+        need(pos + 4, "a dimension")
         (slen,) = u32(data, pos)
         pos = _align(pos + 4 + slen, 4) + 8  # label, then size and stride
+        need(pos, "a dimension")
     pos = _align(pos, 4) + 4  # data_offset
     pos = _align(pos, 4)
+    need(pos + 4, "the data length")
     (n,) = u32(data, pos)
     pos = _align(pos + 4, 8)
+    need(pos + 8 * n, f"the data ({n} values)")
     return np.frombuffer(data, dtype=end + "f8", count=n, offset=pos)
 
 
@@ -56,5 +73,12 @@ def decode_bool(data: bytes) -> bool:
     Returns
     -------
     bool
+
+    Raises
+    ------
+    ValueError
+        ``data`` is not such a message.
     """
+    if len(data) < 5:
+        raise ValueError(f"{len(data)} bytes is too short for a Bool")
     return data[4] != 0

@@ -62,6 +62,19 @@ def qos_profiles_yaml(profile=None, **policies) -> str:
                           default_flow_style=False).strip()
 
 
+#: Longest ``offered_qos_profiles`` text read [characters] (one profile is about 400).
+MAX_QOS_TEXT = 64 << 10
+
+
+class _NoAliases(yaml.SafeLoader):
+    """YAML without anchors and aliases: QoS text never needs them, and they can explode."""
+
+    def compose_node(self, parent, index):
+        if self.check_event(yaml.AliasEvent):
+            raise yaml.YAMLError("uses a YAML alias")
+        return super().compose_node(parent, index)
+
+
 def parse_qos_profiles(text: str) -> list[dict]:
     """Parse ``offered_qos_profiles`` (YAML text or list) into a list of dicts.
 
@@ -72,11 +85,30 @@ def parse_qos_profiles(text: str) -> list[dict]:
     Returns
     -------
     list of dict
+
+    Raises
+    ------
+    ValueError
+        Not a list of mappings (or longer than :data:`MAX_QOS_TEXT`, or using YAML aliases).
     """
     if not text:
         return []
-    data = yaml.safe_load(text) if isinstance(text, str) else text
-    return [dict(p) for p in (data or [])]
+    if isinstance(text, str):
+        if len(text) > MAX_QOS_TEXT:
+            raise ValueError(f"offered_qos_profiles is {len(text)} characters long, not a QoS "
+                             "list")
+        try:
+            data = yaml.load(text, Loader=_NoAliases)  # noqa: S506 - a safe loader
+        except yaml.YAMLError as exc:
+            first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise ValueError(f"offered_qos_profiles is not YAML ({first})") from None
+    else:
+        data = text
+    if data is None:
+        return []
+    if not isinstance(data, list) or not all(isinstance(p, dict) for p in data):
+        raise ValueError("offered_qos_profiles is not a list of QoS profiles")
+    return [dict(p) for p in data]
 
 
 def qos_from_profile(profile: dict | None):

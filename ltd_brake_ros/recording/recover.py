@@ -1,12 +1,10 @@
 """Recovery: a recording whose recorder was killed rewritten as a complete one."""
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
-from mcap.exceptions import McapError
-
-from .layout import MAGIC, RUN_METADATA_NAME
-from .reader import FileScan, bag_files, scan_records
+from .reader import BagError, file_messages, open_recording
 from .writer import BagWriter
 
 __all__ = ["recover", "default_recover_destination"]
@@ -22,9 +20,11 @@ def default_recover_destination(src) -> Path:
 def recover(src, dst=None) -> dict:
     """Rewrite an unfinished recording (recorder killed) as a complete bag folder.
 
-    Every message of every complete chunk is kept, with its channel, schema, QoS metadata and
-    timestamps; the run metadata is copied; summary, indexes and ``metadata.yaml`` are written
-    anew. A complete recording is copied unchanged in content.
+    Every message of every complete chunk is kept, in file order, with its channel, schema,
+    QoS metadata and timestamps; the run metadata is copied; summary, indexes and
+    ``metadata.yaml`` are written anew. A complete recording is copied unchanged in content.
+    Reading ends at the first damaged record. If writing fails (a full disk), what was
+    written is removed: no half-written bag is left behind.
 
     Parameters
     ----------
@@ -39,48 +39,59 @@ def recover(src, dst=None) -> dict:
         ``output`` (folder), ``messages``, ``chunks`` (complete chunks read), ``topics``
         (messages per topic), ``complete`` (the source was already complete), ``stopped_at``
         (why reading ended early, empty when complete).
+
+    Raises
+    ------
+    BagError
+        The source is not MCAP, or not one run (checked before anything is created).
+    FileExistsError
+        ``dst`` holds a bag.
+    OSError
+        Writing failed.
     """
-    files = bag_files(src)
-    for file in files:  # refuse what is not MCAP before creating anything
-        with open(file, "rb") as f:
-            head = f.read(len(MAGIC))
-        if not MAGIC.startswith(head[: len(MAGIC)]):
-            raise McapError(f"{file} is not an MCAP file")
+    indexes = open_recording(src, strict=False)
     dst = Path(dst) if dst is not None else default_recover_destination(src)
+    existed = dst.exists()
     writer = BagWriter(dst, flush_interval_s=float("inf"))
     chunks, complete, reasons = 0, True, []
-    copied: set[str] = set()  # topics declared in the new bag
+    copied: dict[str, str] = {}  # topics declared in the new bag, with their types
 
-    def copy_run_metadata(scan: FileScan) -> None:
-        for m in scan.metadata:
-            if m.name == RUN_METADATA_NAME:
-                writer.copy_run_metadata(m.metadata)
-
-    def copy_channel(scan: FileScan, channel) -> None:
-        if channel.topic not in copied:
-            schema = scan.schemas.get(channel.schema_id)
-            writer.copy_channel(channel.topic, schema.name if schema else "",
-                                schema.encoding if schema else "",
+    def copy_channel(ix, channel, msg_type: str) -> None:
+        known = copied.get(channel.topic)
+        if known is None:
+            schema = ix.schemas.get(channel.schema_id)
+            writer.copy_channel(channel.topic, msg_type, schema.encoding if schema else "",
                                 schema.data if schema else b"", channel.metadata)
-            copied.add(channel.topic)
+            copied[channel.topic] = msg_type
+        elif known != msg_type:
+            raise BagError(ix.path, channel.topic, f"recorded with two message types, {known} "
+                                                   f"and {msg_type}: not one recording")
 
     try:
-        for file in files:
-            scan = FileScan()
-            for channel, message in scan_records(file, scan, strict=False):
-                copy_run_metadata(scan)
-                copy_channel(scan, channel)
-                writer.copy_message(channel.topic, message.data, message.log_time,
-                                    message.publish_time, message.sequence)
-            for channel in scan.channels.values():  # topics declared but never written
-                copy_channel(scan, channel)
-            copy_run_metadata(scan)
-            chunks += scan.chunks
-            if not scan.complete:
+        for ix in indexes:
+            if ix.run_entries:
+                writer.copy_run_metadata(ix.run_entries)
+            for channel, msg_type, log, pub, seq, data in file_messages(ix, strict=False,
+                                                                        ordered=False):
+                copy_channel(ix, channel, msg_type)
+                writer.copy_message(channel.topic, data, log, pub, seq)
+            for cid, channel in ix.channels.items():  # topics declared but never written
+                copy_channel(ix, channel, ix.topic(cid)[1])
+            chunks += ix.chunk_count
+            if not ix.complete or ix.error:
                 complete = False
-                reasons.append(f"{file.name}: {scan.error}")
-    finally:
+                reasons.append(f"{ix.path.name}: {ix.error}")
         writer.close()
+    except BaseException:
+        with contextlib.suppress(Exception):
+            writer.close()
+        for f in (writer.path, dst / "metadata.yaml"):
+            with contextlib.suppress(OSError):
+                f.unlink()
+        if not existed:
+            with contextlib.suppress(OSError):
+                dst.rmdir()
+        raise
     return {"output": str(dst), "messages": writer.message_count, "chunks": chunks,
             "topics": writer.topic_counts(), "complete": complete,
             "stopped_at": "; ".join(reasons)}
