@@ -6,6 +6,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..recording.output import checked_output
+
 if TYPE_CHECKING:
     from .report import RunReport
 
@@ -28,6 +30,11 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
     Returns
     -------
     list of pathlib.Path
+
+    Raises
+    ------
+    OSError
+        A file cannot be written (named; no half-written file is left).
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.colors import TwoSlopeNorm
@@ -42,7 +49,8 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
     def save(fig, name):
         FigureCanvasAgg(fig)
         p = out / name
-        fig.savefig(p, dpi=120)
+        with checked_output(p, "wb") as fh:
+            fig.savefig(fh, format="png", dpi=120)
         paths.append(p)
 
     def mark_command(ax):

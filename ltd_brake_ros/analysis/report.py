@@ -23,24 +23,29 @@ counts a stop); the stopping distance is the head's
 position then minus its position at the command (interpolated between samples). Peak forces
 are the extremes over the whole recording.
 
+Samples are read in log-time order and checked (:mod:`.samples`): a plant topic of another
+type, a payload that does not decode, a non-finite value, arrays that do not describe one train
+or run information at odds with them end in :class:`~ltd_brake_ros.recording.reader.BagError`,
+never in a report of part of the data.
+
 The file is streamed: time series of the head and tail (a few numbers per sample) are kept,
 the coupler heat map is reduced on the fly to at most a few thousand time bins (each holding
 the force of largest magnitude in it, sign kept), and the CSV export re-reads the file.
 """
 from __future__ import annotations
 
-import warnings
 from array import array
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..physics.constants import STANDSTILL_M_S
-from ..recording.cdr import decode_bool, decode_float64_array
-from ..recording.reader import TruncatedBagWarning, bag_info, read_bag
+from ..recording.cdr import decode_float64_array  # noqa: F401 - re-exported
+from ..recording.reader import BagError, bag_info
 from ..simulator import CouplerPeaks
 from .export import write_csv  # noqa: F401 - re-exported: one import for the whole analysis
 from .plots import write_plots  # noqa: F401
+from .samples import BRAKE_COMMAND, plant_samples
 
 __all__ = ["RunReport", "analyse", "write_plots", "write_csv", "decode_float64_array"]
 
@@ -88,9 +93,8 @@ class _HeatMap:
         self._cur_n = 0
 
     def add(self, t: float, f: np.ndarray) -> None:
-        if self._cur is None or self._cur.shape != f.shape:
-            if self._cur is not None:  # the train changed length: keep the first layout
-                return
+        """Add one sample (every sample the same length) at time ``t`` [s]."""
+        if self._cur is None:
             self.values = np.zeros((2 * self.max_bins, f.size))
             self._cur = f.copy()
             self._cur_t0 = t
@@ -235,19 +239,16 @@ class RunReport:
         c = self.metadata.get("consist")
         if isinstance(c, dict):
             parts = [str(c.get("name", "consist"))]
-            if "vehicles" in c:
-                parts.append(f"{c['vehicles']} vehicles")
-            if "length_m" in c:
-                parts.append(f"{c['length_m']:.1f} m")
-            if "mass_t" in c:
-                parts.append(f"{c['mass_t']:.1f} t")
-            if "braked_weight_percent" in c:
-                parts.append(f"braked weight {c['braked_weight_percent']:.1f} %")
+            for key, text in (("vehicles", "{} vehicles"), ("length_m", "{} m"),
+                              ("mass_t", "{} t"), ("braked_weight_percent", "braked weight {} %")):
+                if key in c:
+                    parts.append(text.format(_shown(c[key], ".0f" if key == "vehicles" else ".1f")))
             lines.append("Consist: " + ", ".join(parts))
         else:
             lines.append(f"Consist: not recorded ({self.n_vehicles} vehicles in the data)")
         if "initial_speed_kmh" in self.metadata:
-            lines.append(f"Initial speed: {self.metadata['initial_speed_kmh']:.1f} km/h")
+            lines.append(f"Initial speed: {_shown(self.metadata['initial_speed_kmh'], '.1f')} "
+                         "km/h")
         if "scenario" in self.metadata:
             lines.append(f"Scenario: {self.metadata['scenario']}")
         lines.append(f"Recorded: t = {self.start_time_s:.2f} to {self.end_time_s:.2f} s, "
@@ -274,12 +275,30 @@ class RunReport:
         return "\n".join(lines)
 
 
-def _find_namespace(topics, namespace: str | None) -> str:
+def _number(value) -> float | None:
+    """``value`` if it is a finite real number (not a bool), else None."""
+    if not isinstance(value, (int, float)) or isinstance(value, bool):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:  # an int beyond float range
+        return None
+    return number if np.isfinite(number) else None
+
+
+def _shown(value, spec: str) -> str:
+    """A run-information value as text: a number formatted with ``spec``, anything else as is."""
+    number = _number(value)
+    return format(number, spec) if number is not None else f"{value!s:.40}"
+
+
+def _find_namespace(path, topics, namespace: str | None) -> str:
     if namespace is not None:
         return namespace.rstrip("/")
     candidates = [t[: -len("/vehicles/speed")] for t in topics if t.endswith("/vehicles/speed")]
     if not candidates:
-        raise ValueError("the recording has no <ns>/vehicles/speed topic: nothing to analyse")
+        raise BagError(path, "", "the recording has no <ns>/vehicles/speed topic: nothing to "
+                                 "analyse")
     return candidates[0]
 
 
@@ -299,14 +318,12 @@ def analyse(path, namespace: str | None = None) -> RunReport:
 
     Raises
     ------
-    ValueError
-        The recording holds no vehicle speeds.
+    BagError
+        The recording cannot be read, holds no vehicle speeds, or its plant topics hold what
+        the plant never publishes (see :mod:`.samples`).
     """
     info = bag_info(path)
-    ns = _find_namespace(info.topics, namespace)
-    t_speed, t_pos = f"{ns}/vehicles/speed", f"{ns}/vehicles/position"
-    t_brake, t_coupler = f"{ns}/vehicles/brake_force", f"{ns}/couplers/force"
-    t_cmd = f"{ns}/brake_command"
+    ns = _find_namespace(path, info.topics, namespace)
     speed = _Series("t", "head", "tail", "vmax")
     pos = _Series("t", "head")
     brake = _Series("t", "head", "tail")
@@ -315,50 +332,43 @@ def analyse(path, namespace: str | None = None) -> RunReport:
     command_t = None
     n_vehicles = 0
     head_wagon = None
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", TruncatedBagWarning)
-        for topic, _type, log_time_ns, data in read_bag(path):
-            t = log_time_ns * 1e-9
-            if topic == t_speed:
-                v = decode_float64_array(data)
-                if v.size:
-                    n_vehicles = v.size
-                    speed.add(t, v[0], v[-1], float(np.abs(v).max()))
-            elif topic == t_pos:
-                x = decode_float64_array(data)
-                if x.size:
-                    pos.add(t, x[0])
-            elif topic == t_brake:
-                fb = decode_float64_array(data)
-                if fb.size:
-                    if head_wagon is None:
-                        head_wagon = 1 if fb.size > 1 else 0
-                    brake.add(t, fb[head_wagon], fb[-1])
-            elif topic == t_coupler:
-                f = decode_float64_array(data)
-                if not f.size:
-                    continue
-                if draft is None or draft.shape != f.shape:
-                    if draft is not None:
-                        continue
-                    draft = np.zeros(f.size)
-                    buff = np.zeros(f.size)
-                    draft_t = np.zeros(f.size)
-                    buff_t = np.zeros(f.size)
-                up = f > draft
-                draft[up] = f[up]
-                draft_t[up] = t
-                down = f < buff
-                buff[down] = f[down]
-                buff_t[down] = t
-                heat.add(t, f)
-            elif topic == t_cmd and command_t is None and decode_bool(data):
-                command_t = t
+    for name, t, _log_ns, value in plant_samples(path, ns):
+        if name == "vehicles/speed":
+            n_vehicles = value.size
+            speed.add(t, value[0], value[-1], float(np.abs(value).max()))
+        elif name == "vehicles/position":
+            pos.add(t, value[0])
+        elif name == "vehicles/brake_force":
+            if head_wagon is None:
+                head_wagon = 1 if value.size > 1 else 0
+            brake.add(t, value[head_wagon], value[-1])
+        elif name == "couplers/force":
+            if not value.size:
+                continue
+            if draft is None:
+                draft = np.zeros(value.size)
+                buff = np.zeros(value.size)
+                draft_t = np.zeros(value.size)
+                buff_t = np.zeros(value.size)
+            up = value > draft
+            draft[up] = value[up]
+            draft_t[up] = t
+            down = value < buff
+            buff[down] = value[down]
+            buff_t[down] = t
+            heat.add(t, value)
+        elif name == BRAKE_COMMAND and command_t is None and value:
+            command_t = t
     if not len(speed):
-        raise ValueError(f"{path}: no {t_speed} samples recorded")
+        raise BagError(path, f"{ns}/vehicles/speed", "no samples recorded: nothing to analyse")
+    vehicles = info.metadata.get("consist", {}).get("vehicles") \
+        if isinstance(info.metadata.get("consist"), dict) else None
+    if _number(vehicles) is not None and vehicles != n_vehicles:
+        raise BagError(path, f"{ns}/vehicles/speed", f"{n_vehicles} vehicles in the arrays, but "
+                       f"the run information says {vehicles}: they are not of one run")
     if command_t is None:
         for key in ("emergency_time_s", "command_time_s"):
-            if isinstance(info.metadata.get(key), (int, float)):
+            if _number(info.metadata.get(key)) is not None:
                 command_t = float(info.metadata[key])
                 break
     ts, vmax = speed.np("t"), speed.np("vmax")

@@ -1,8 +1,9 @@
 """``ltd-brake``: the command-line tool; one module per verb (simulate, validate, ...).
 
 Every verb prints a helpful error and exits non-zero on bad input, never a traceback: the verbs
-raise :class:`~ltd_brake_ros.inputs.InputError` and :func:`main` is the one place that turns it
-into a line on stderr.
+raise :class:`~ltd_brake_ros.inputs.InputError` (a bad recording:
+:class:`~ltd_brake_ros.recording.reader.BagError`, one of them) and :func:`main` is the one place
+that turns it, or an output that cannot be written (:class:`OSError`), into a line on stderr.
 """
 from __future__ import annotations
 
@@ -47,8 +48,9 @@ def main(argv: list[str] | None = None) -> int:
     Returns
     -------
     int
-        Exit status: 0 success, 2 bad input, 3 simulation failure, 130 interrupted, 141 the
-        output was closed early (as a shell reports a writer ended by SIGPIPE).
+        Exit status: 0 success, 2 bad input or an output that cannot be written, 3 simulation
+        failure, 130 interrupted, 141 the output was closed early (as a shell reports a writer
+        ended by SIGPIPE).
     """
     from ..simulator import SimulationError
 
@@ -58,7 +60,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return args.func(args)
+        status = args.func(args)
+        sys.stdout.flush()  # an output that cannot be written is reported here, not at exit
+        return status
     except InputError as exc:
         print(f"ltd-brake {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -71,8 +75,25 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:
         # the reader went away (`ltd-brake ... | head`): nothing more to say, and nothing to
         # flush at exit either
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        _discard_stdout()
         return 141
+    except OSError as exc:
+        # an output that cannot be written: a full disk, a read-only folder, ...
+        if exc.filename:
+            what = f"cannot write {exc.filename}: {exc.strerror}"
+        else:
+            what = f"cannot write the output: {exc.strerror or exc}"
+        print(f"ltd-brake {args.command}: error: {what}", file=sys.stderr)
+        try:
+            sys.stdout.flush()
+        except OSError:
+            _discard_stdout()
+        return 2
+
+
+def _discard_stdout() -> None:
+    """Point standard output at the null device: what is left in its buffer goes nowhere."""
+    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
 if __name__ == "__main__":

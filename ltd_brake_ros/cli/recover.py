@@ -24,19 +24,21 @@ def run(args: argparse.Namespace) -> int:
     Raises
     ------
     InputError
-        The source is not a readable recording, or the destination holds a bag.
+        The source is not a readable recording, the destination holds a bag, or it cannot be
+        written (nothing half-written is left there).
     """
-    from mcap.exceptions import McapError
-
+    from ..recording.reader import BagError
     from ..recording.recover import default_recover_destination, recover
 
     dst = args.dst or default_recover_destination(args.src)
     try:
         res = recover(args.src, dst)
+    except BagError as exc:
+        raise InputError("command line", "SRC", str(exc)) from None
     except FileExistsError as exc:
         raise InputError("command line", "DST", str(exc)) from None
-    except (OSError, ValueError, McapError) as exc:
-        raise InputError("command line", "SRC", str(exc)) from None
+    except OSError as exc:
+        raise InputError("command line", "DST", f"cannot write {dst}: {exc}") from None
     state = "was complete" if res["complete"] else f"ended early ({res['stopped_at']})"
     print(f"source {state}")
     print(f"recovered {res['messages']} messages from {res['chunks']} complete chunks "
@@ -44,4 +46,3 @@ def run(args: argparse.Namespace) -> int:
     for topic, n in res["topics"].items():
         print(f"  {topic}: {n}")
     return 0
-

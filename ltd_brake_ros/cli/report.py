@@ -45,21 +45,25 @@ def run(args: argparse.Namespace) -> int:
     InputError
         The recording cannot be read or holds no plant topics; the output cannot be written.
     """
-    from mcap.exceptions import McapError
-
     from ..analysis.export import write_csv
     from ..analysis.plots import write_plots
     from ..analysis.report import analyse
+    from ..recording.reader import BagError
 
     run_path = Path(args.run)
     try:
         rep = analyse(run_path, args.namespace)
-    except (OSError, ValueError, McapError) as exc:
+    except BagError as exc:
         raise InputError("command line", "RUN", str(exc)) from None
     out = Path(args.out) if args.out else _default_outdir(run_path)
+    if out.exists() and not out.is_dir():
+        raise InputError("command line", "--out", f"{out} is a file; give a folder for the "
+                                                  "plots and CSV")
     try:
         plots = write_plots(rep, out)
         csvs = write_csv(rep, out) if args.csv else []
+    except BagError as exc:
+        raise InputError("command line", "RUN", str(exc)) from None
     except OSError as exc:
         raise InputError("command line", "--out", f"cannot write to {out}: {exc}") from None
     if args.json:

@@ -19,6 +19,7 @@ from mcap.records import (Channel, ChunkIndex, DataEnd, Footer, Header, Metadata
 
 from .layout import (LIBRARY, MAGIC, ROS_DISTRO, ROSBAG2_VERSION, RUN_METADATA_NAME,
                      decode_run_metadata, encode_run_metadata)
+from .output import checked_output
 from .qos import parse_qos_profiles, qos_profiles_yaml
 from .ros_types import message_definition, split_type, type_description_hash
 
@@ -477,9 +478,8 @@ class BagWriter:
                 raise OSError(f"writing {self.path} failed: {self._error}") from self._error
             text = yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False,
                                   default_flow_style=False)
-            tmp = self.folder / "metadata.yaml.tmp"
-            tmp.write_text(text)
-            os.replace(tmp, self.folder / "metadata.yaml")
+            with checked_output(self.folder / "metadata.yaml", encoding="utf-8") as fh:
+                fh.write(text)
 
     def _summary(self) -> bytes:
         """Summary section, footer and closing magic (the writer thread is idle)."""

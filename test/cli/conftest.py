@@ -3,6 +3,21 @@ from __future__ import annotations
 
 import pytest
 
+from bag_helpers import record_emergency_stop
+from ltd_brake_ros.inputs import get_scenario
+
+
+@pytest.fixture(scope="session")
+def folder(tmp_path_factory):
+    """A recorded emergency stop of paper scenario 7 (the shortest run), namespace /train1.
+
+    Tests read it and never write into it.
+    """
+    sc = get_scenario(7)
+    path = tmp_path_factory.mktemp("cli_run") / "run"
+    record_emergency_stop(path, sc.consist(), sc.speed_kmh, ns="/train1", chunk_size=1 << 16)
+    return path
+
 
 @pytest.fixture
 def one_line_error(capsys):

@@ -5,18 +5,7 @@ import json
 
 import pytest
 
-from bag_helpers import record_emergency_stop
 from ltd_brake_ros.cli.main import main
-from ltd_brake_ros.inputs import get_scenario
-
-
-@pytest.fixture(scope="module")
-def folder(tmp_path_factory):
-    sc = get_scenario(7)  # the shortest of the paper's runs
-    path = tmp_path_factory.mktemp("cli_report") / "run"
-    record_emergency_stop(path, sc.consist(), sc.speed_kmh, ns="/train1", chunk_size=1 << 16)
-    return path
-
 
 
 def test_report_prints_json_and_writes_plots_and_csv(folder, tmp_path, capsys):
