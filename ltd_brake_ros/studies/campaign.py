@@ -122,7 +122,7 @@ def draw(c: Campaign, run_id: int) -> tuple[dict, dict]:
         else None
     n_target = _whole(*fam.wagons, u["size"]) if fam.wagons else None
     length_m = n_loco * lengths[loco.type]
-    wagons, codes, masses = [], [], []
+    wagons, codes, masses, types = [], [], [], []
     shares = [w.share for w in fam.wagon_types]
     while True:
         # five numbers per wagon, always drawn, so that each wagon's draws stay in step
@@ -141,7 +141,8 @@ def draw(c: Campaign, run_id: int) -> tuple[dict, dict]:
             entry["brake"] = {"type": "none"}
         wagons.append(entry)
         masses.append(mass)
-        codes.append("x" if isolated else entry["brake_position"] + ("L" if loaded else "E"))
+        types.append(wt.type)
+        codes.append(("x" if isolated else entry["brake_position"]) + ("L" if loaded else "E"))
         length_m += lengths[wt.type]
     head = [{"type": loco.type} for p in loco.positions[:n_loco] if p == "head"]
     middle = [{"type": loco.type} for p in loco.positions[:n_loco] if p == "middle"]
@@ -155,10 +156,10 @@ def draw(c: Campaign, run_id: int) -> tuple[dict, dict]:
         "coupler": c.couplers[_choose([v.weight for v in c.couplers], u["coupler"])].name,
         "brake_params": c.brake_params[_choose([v.weight for v in c.brake_params],
                                                u["brake_params"])].name,
-        "wagon_mass_t": masses, "wagon_brakes": " ".join(codes),
-        "loaded_wagons": sum(c.endswith("L") for c in codes),
-        "g_wagons": sum(c.startswith("G") for c in codes),
-        "isolated_wagons": codes.count("x"),
+        "wagon_types": types, "wagon_mass_t": masses, "wagon_brakes": " ".join(codes),
+        "loaded_wagons": sum(k.endswith("L") for k in codes),
+        "g_wagons": sum(k.startswith("G") for k in codes),
+        "isolated_wagons": sum(k.startswith("x") for k in codes),
     }
     for name in sorted(c.uncertainties):
         sample[name] = inverse_cdf(c.uncertainties[name], u[name])
@@ -207,6 +208,11 @@ KPI_FIELDS = (
 def schema_of(c: Campaign) -> pa.Schema:
     """The Parquet schema of a campaign's rows.
 
+    Inputs: the run's draws (``wagon_types``, ``wagon_mass_t`` and ``wagon_brakes`` list the
+    wagons from the head; a brake code is the position ``P``/``G`` or ``x`` for an isolated
+    brake, then ``L`` loaded or ``E`` empty), one column per uncertain parameter; then
+    :data:`KPI_FIELDS`; ``status`` ``ok`` or ``failed`` with its ``message``.
+
     Parameters
     ----------
     c : Campaign
@@ -219,7 +225,8 @@ def schema_of(c: Campaign) -> pa.Schema:
             ("message", pa.string()), ("family", pa.string()), ("wagons", pa.int32()),
             ("locomotives", pa.int32()), ("locomotive_positions", pa.string()),
             ("speed_kmh", pa.float64()), ("coupler", pa.string()), ("brake_params", pa.string()),
-            ("wagon_mass_t", pa.list_(pa.float64())), ("wagon_brakes", pa.string()),
+            ("wagon_types", pa.list_(pa.string())), ("wagon_mass_t", pa.list_(pa.float64())),
+            ("wagon_brakes", pa.string()),
             ("loaded_wagons", pa.int32()), ("g_wagons", pa.int32()),
             ("isolated_wagons", pa.int32())]
     unc = [(name, pa.float64()) for name in sorted(c.uncertainties)]

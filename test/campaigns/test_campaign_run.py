@@ -31,7 +31,9 @@ def test_serial_table_holds_every_run_once_with_physical_kpis(reference):
     assert set(table["status"].to_pylist()) == {"ok"}
     rows = table.to_pylist()
     for r in rows:
-        assert r["wagons"] == len(r["wagon_brakes"].split()) == len(r["wagon_mass_t"])
+        assert r["wagons"] == len(r["wagon_brakes"].split()) == len(r["wagon_mass_t"]) \
+            == len(r["wagon_types"])
+        assert r["loaded_wagons"] == sum(m > 22.0 for m in r["wagon_mass_t"])
         # stopping distance between v^2 / (2 * 1 g) (wheel/rail adhesion bound) and the
         # distance at constant speed for the stop time
         v = r["speed_kmh"] / 3.6
@@ -78,7 +80,9 @@ def test_a_failing_run_is_recorded_with_its_message(tmp_path):
     table = read_results(tmp_path / "out")[1]
     assert table.num_rows == 6 and summary["failed"] >= 1
     for r in table.to_pylist():
-        empty = min(r["wagon_mass_t"]) == 0.5 and "E" in r["wagon_brakes"].replace("x", "")
+        # a braked empty wagon (P or G, not isolated) is what fails
+        empty = any(k in ("PE", "GE") for k in r["wagon_brakes"].split())
+        assert r["status"] == ("failed" if empty else "ok")
         if r["status"] == "failed":
             assert "more than twice the vehicle mass" in r["message"]
             assert r["stopping_distance_m"] is None
