@@ -7,6 +7,7 @@ from pathlib import Path
 
 from ..inputs import InputError
 from ..physics.brakes import DEFAULT_MODEL
+from ..recording.output import checked_output
 from ..studies.calibration import UIC_SPEED_KMH, fit_parameters, parse_fit
 from .options import add_model_options, load_model, parse_scenarios, positive_int
 
@@ -173,10 +174,11 @@ def run(args: argparse.Namespace) -> int:
             print(f"warning: {w}")
     if args.out:
         text = parameter_file_text(cal, command_line(args, fit))
-        try:
-            Path(args.out).expanduser().write_text(text, encoding="utf-8")
+        try:  # a full disk leaves no truncated parameter file behind
+            with checked_output(Path(args.out).expanduser(), encoding="utf-8") as fh:
+                fh.write(text)
         except OSError as exc:
-            raise InputError(args.out, "", f"cannot write: {exc}") from None
+            raise InputError(args.out, "", f"cannot write: {exc.strerror or exc}") from None
         print()
         print(f"wrote {args.out}")
     return 0

@@ -12,8 +12,13 @@ import sys
 from pathlib import Path
 from typing import Iterator
 
-__all__ = ["split_type", "message_class", "type_name", "message_definition",
+__all__ = ["MessageTypeError", "split_type", "message_class", "type_name", "message_definition",
            "type_description_hash"]
+
+
+class MessageTypeError(LookupError, ValueError):
+    """A recorded message type that names no installed ROS message (a ``ValueError`` too:
+    the name comes from a file)."""
 
 
 def split_type(msg_type: str) -> tuple[str, str, str]:
@@ -56,14 +61,19 @@ def message_class(msg_type: str):
 
     Raises
     ------
-    LookupError
-        The message package is not installed.
+    MessageTypeError
+        Not a message type name, or its package is not installed.
     """
     pkg, ns, name = split_type(msg_type)
+    if not (pkg.isidentifier() and ns in ("msg", "action", "srv") and name.isidentifier()):
+        raise MessageTypeError(f"{msg_type!r} is not a ROS message type name")
     try:
-        return getattr(importlib.import_module(f"{pkg}.{ns}"), name)
+        cls = getattr(importlib.import_module(f"{pkg}.{ns}"), name)
     except (ImportError, AttributeError) as exc:
-        raise LookupError(f"message type {msg_type} is not installed ({exc})") from None
+        raise MessageTypeError(f"message type {msg_type} is not installed ({exc})") from None
+    if not hasattr(cls, "SLOT_TYPES"):
+        raise MessageTypeError(f"{msg_type} is not a ROS message class")
+    return cls
 
 
 def type_name(msg) -> str:

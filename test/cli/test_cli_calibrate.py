@@ -3,8 +3,10 @@ from dataclasses import replace
 
 import pytest
 
+from bag_helpers import DiskFull
 from ltd_brake_ros.cli.main import main
 from ltd_brake_ros.inputs import load_brake_params, load_coupler_lut, load_scenarios
+from ltd_brake_ros.recording import output as output_module
 from ltd_brake_ros.studies.runs import emergency_stop
 
 
@@ -30,6 +32,18 @@ def test_out_file_round_trips(tmp_path, capsys):
     sc = load_scenarios()[1]
     d = emergency_stop(sc.consist(), sc.speed_kmh, params, lut, step_s=0.02).stopping_distance_m
     assert f"sim {d:6.1f} m" in text
+
+
+def test_out_file_on_a_full_disk_is_one_line_and_keeps_the_old_file(tmp_path, monkeypatch,
+                                                                     one_line_error):
+    out = tmp_path / "fitted.yaml"
+    out.write_text("previous: file\n")
+    monkeypatch.setattr(output_module, "open", DiskFull(500).open, raising=False)
+    assert main(["calibrate", "--target", "paper", "--fit", "k0", "--scenarios", "1",
+                 "--step-s", "0.05", "--jobs", "1", "--quiet", "--out", str(out)]) == 2
+    assert "No space left on device" in one_line_error("calibrate")
+    assert out.read_text() == "previous: file\n"  # not a truncated parameter file
+    assert [p.name for p in tmp_path.iterdir()] == ["fitted.yaml"]
 
 
 # --------------------------------------------------------------------------- bad input

@@ -22,6 +22,7 @@ from ltd_brake_ros.recording import reader as reader_module
 from ltd_brake_ros.recording.reader import (BagError, TruncatedBagWarning, bag_info, index_file,
                                             read_bag)
 from ltd_brake_ros.recording.recover import recover
+from ltd_brake_ros.recording.ros_types import MessageTypeError, message_class
 
 F64 = "std_msgs/msg/Float64"
 RUN_A = {"consist": {"name": "A", "vehicles": 11}, "initial_speed_kmh": 50.0}
@@ -262,3 +263,13 @@ def test_sorting_is_bounded_in_memory(tmp_path, monkeypatch):
     with pytest.raises(BagError) as err:
         list(read_bag(path))
     _one_line(err.value, path, "out of log-time order")
+
+
+@pytest.mark.parametrize("name", ["nonexistent_msgs/msg/Thing", ".a/msg/B", "os/msg/path",
+                                  "std_msgs/msg/__class__", "std_msgs/msg/Bool\n", ""])
+def test_a_recorded_type_that_is_no_installed_message_is_a_value_error(name):
+    # replay_node creates publishers from recorded type names: its ValueError handler must
+    # catch every bad one, and nothing is imported for a name that is not a type name
+    with pytest.raises(MessageTypeError if name else ValueError):
+        message_class(name)
+    assert message_class("std_msgs/msg/Bool") is Bool
