@@ -111,10 +111,19 @@ def parse_qos_profiles(text: str) -> list[dict]:
     return [dict(p) for p in data]
 
 
+def _whole(value) -> int:
+    """A recorded whole number, 0 when it is none (a QoS value from a file may be anything)."""
+    try:
+        return int(value) if not isinstance(value, float) or value.is_integer() else 0
+    except (TypeError, ValueError, OverflowError):
+        return 0
+
+
 def qos_from_profile(profile: dict | None):
     """rclpy ``QoSProfile`` from one recorded ``offered_qos_profiles`` entry.
 
-    Unset or infinite durations are left to the middleware default (infinite).
+    Unset or infinite durations are left to the middleware default (infinite); a value that
+    is not one of the policy's (a damaged file) gives the default of that policy.
 
     Parameters
     ----------
@@ -143,8 +152,8 @@ def qos_from_profile(profile: dict | None):
             else enum[default.upper()]
 
     history = policy(HistoryPolicy, "history", "keep_last")
-    depth = int(p.get("depth", 10) or 0)
-    if history == HistoryPolicy.KEEP_LAST and depth < 1:
+    depth = _whole(p.get("depth", 10))
+    if history == HistoryPolicy.KEEP_LAST and not 1 <= depth < 2 ** 31:
         depth = 10
     qos = QoSProfile(history=history, depth=depth,
                      reliability=policy(ReliabilityPolicy, "reliability", "reliable"),
@@ -153,8 +162,10 @@ def qos_from_profile(profile: dict | None):
                      avoid_ros_namespace_conventions=bool(
                          p.get("avoid_ros_namespace_conventions", False)))
     for key in ("deadline", "lifespan", "liveliness_lease_duration"):
-        d = p.get(key) or {}
-        ns = int(d.get("sec", 0)) * 1_000_000_000 + int(d.get("nsec", 0))
+        d = p.get(key)
+        if not isinstance(d, dict):
+            continue
+        ns = _whole(d.get("sec", 0)) * 1_000_000_000 + _whole(d.get("nsec", 0))
         if 0 < ns < _INFINITE_NS:
             setattr(qos, key, Duration(nanoseconds=ns))
     return qos

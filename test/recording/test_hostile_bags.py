@@ -21,6 +21,7 @@ from bag_helpers import write_messages
 from ltd_brake_ros.recording import reader as reader_module
 from ltd_brake_ros.recording.reader import (BagError, TruncatedBagWarning, bag_info, index_file,
                                             read_bag)
+from ltd_brake_ros.recording.qos import qos_from_profile
 from ltd_brake_ros.recording.recover import recover
 from ltd_brake_ros.recording.ros_types import MessageTypeError, message_class
 
@@ -273,3 +274,15 @@ def test_a_recorded_type_that_is_no_installed_message_is_a_value_error(name):
     with pytest.raises(MessageTypeError if name else ValueError):
         message_class(name)
     assert message_class("std_msgs/msg/Bool") is Bool
+
+
+@pytest.mark.parametrize("profile", [
+    {"depth": "abc"}, {"depth": 1e300}, {"depth": float("nan")}, {"depth": -3},
+    {"deadline": "x"}, {"lifespan": {"sec": "a", "nsec": None}}, {"history": [1]},
+    {"reliability": 99}, {"durability": None}])
+def test_a_recorded_qos_value_that_is_no_policy_value_gives_the_default(profile):
+    # replay_node offers each topic with its recorded QoS: a damaged value must not stop it
+    qos = qos_from_profile(profile)
+    default = qos_from_profile(None)
+    for key in ("depth", "history", "reliability", "durability", "deadline", "lifespan"):
+        assert getattr(qos, key) == getattr(default, key), key
