@@ -12,6 +12,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pyarrow.compute as pc
 
 from ..inputs import InputError
 from ..studies.campaign_exec import read_results
@@ -93,14 +94,15 @@ def _kpis(table) -> dict[str, np.ndarray]:
 def campaign_report(folder, *, against=None, thresholds: dict | None = None,
                     quantile: float = 0.99, confidence: float = 0.95, worst: int = 5,
                     plots=None, seed: int = 0) -> dict:
-    """Summarise a campaign results folder.
+    """Summarise a campaign results folder, manoeuvre by manoeuvre.
 
     Parameters
     ----------
     folder : path-like
         Results folder of ``ltd-brake campaign run``.
     against : path-like, optional
-        Results folder of the reference family (relative approach).
+        Results folder of the reference family (relative approach, for the manoeuvres of the
+        same name).
     thresholds : dict, optional
         KPI -> value: the probability of exceeding it (Wilson interval).
     quantile : float, optional
@@ -110,67 +112,84 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
     worst : int, optional
         Worst runs listed per force KPI.
     plots : path-like, optional
-        Folder for ``cdf_<KPI>.png`` and ``hist_<KPI>.png``.
+        Folder for ``cdf_<manoeuvre>_<KPI>.png`` and ``hist_<manoeuvre>_<KPI>.png``.
     seed : int, optional
         Bootstrap seed (the report is reproducible).
 
     Returns
     -------
     dict
-        ``name``, ``runs``, ``failed``, ``failures`` (first messages), ``quantiles``,
-        ``verdict_counts``, ``exceedance``, ``worst``, ``relative`` and ``plots``.
+        ``name``, ``runs``, ``failed``, ``failures`` (first messages), ``confidence``,
+        ``reference``, ``plots`` and ``manoeuvres``: name -> ``runs``, ``quantiles``,
+        ``verdict_counts``, ``exceedance``, ``worst`` and ``relative``.
     """
     meta, table = read_results(folder)
     rng = np.random.default_rng(seed)
     status = np.array(table["status"].to_pylist())
-    n_failed = int((status != "ok").sum())
-    kpis = _kpis(table)
-    qs = sorted(set(QUANTILES) | {quantile})
     rep: dict = {"name": meta.get("name", str(folder)), "folder": str(folder),
-                 "runs": table.num_rows, "expected_runs": meta.get("runs"), "failed": n_failed,
-                 "failures": [f"run {r['run_id']}: {r['message']}" for r in table.filter(
-                     status != "ok").slice(0, 5).select(["run_id", "message"]).to_pylist()],
-                 "confidence": confidence, "quantiles": {}, "exceedance": {}, "worst": {},
-                 "relative": [], "plots": []}
+                 "runs": table.num_rows,
+                 "expected_runs": meta.get("runs", 0) * len(meta.get("manoeuvres", [None])),
+                 "failed": int((status != "ok").sum()),
+                 "failures": [f"run {r['run_id']} {r['manoeuvre']}: {r['message']}"
+                              for r in table.filter(status != "ok").slice(0, 5)
+                              .select(["run_id", "manoeuvre", "message"]).to_pylist()],
+                 "confidence": confidence, "manoeuvres": {}, "plots": []}
+    ref_table = None
+    if against is not None:
+        ref_meta, ref_table = read_results(against)
+        rep["reference"] = ref_meta.get("name", str(against))
+    names = meta.get("manoeuvres") or sorted(set(table["manoeuvre"].to_pylist()))
+    for name in names:
+        part = table.filter(pc.equal(table["manoeuvre"], name))
+        ref = None
+        if ref_table is not None:
+            ref_part = ref_table.filter(pc.equal(ref_table["manoeuvre"], name))
+            ref = _kpis(ref_part) if ref_part.num_rows else None
+        section = _section(part, ref, thresholds or {}, quantile, confidence, worst, rng)
+        rep["manoeuvres"][name] = section
+        if plots is not None:
+            rep["plots"] += _plots(Path(plots), name, _kpis(part), ref, rep["name"],
+                                   rep.get("reference"))
+    return rep
+
+
+def _section(table, ref: dict | None, thresholds: dict, quantile: float, confidence: float,
+             worst: int, rng) -> dict:
+    """The report of one manoeuvre's rows (``ref``: the reference family's KPIs)."""
+    kpis = _kpis(table)
+    ok = np.array(table["status"].to_pylist()) == "ok"
+    out: dict = {"runs": table.num_rows, "quantiles": {}, "exceedance": {}, "worst": {},
+                 "relative": []}
     for name, x in kpis.items():
         if len(x):
-            rep["quantiles"][name] = {f"{q:g}": bootstrap_quantile(x, q, confidence, rng)[:3]
-                                      for q in qs}
-    ok = status == "ok"
-    rep["verdict_counts"] = {flag: int((~np.array(table[flag].to_pylist(), bool)[ok]).sum())
+            out["quantiles"][name] = {f"{q:g}": bootstrap_quantile(x, q, confidence, rng)[:3]
+                                      for q in sorted(set(QUANTILES) | {quantile})}
+    out["verdict_counts"] = {flag: int((~np.array(table[flag].to_pylist(), bool)[ok]).sum())
                              for flag in ("draft_ok", "buff_ok", "adhesion_ok")}
     z = _z(confidence)
-    for name, limit in (thresholds or {}).items():
+    for name, limit in thresholds.items():
         x = kpis[name]
         k, n = int((x > limit).sum()), len(x)
-        rep["exceedance"][name] = {"threshold": limit, "count": k, "of": n,
+        out["exceedance"][name] = {"threshold": limit, "count": k, "of": n,
                                    "probability": k / n if n else math.nan,
                                    "interval": _wilson(k, n, z)}
     cols = ["run_id", "family", "wagons", "speed_kmh", "peak_draft_kN", "peak_draft_coupler",
             "peak_buff_kN", "peak_buff_coupler", "max_adhesion_demand", "stopping_distance_m"]
-    rows = table.filter(np.array(ok)).select(cols).to_pylist()
-    rep["worst"]["buff"] = sorted(rows, key=lambda r: r["peak_buff_kN"])[:worst]
-    rep["worst"]["draft"] = sorted(rows, key=lambda r: -r["peak_draft_kN"])[:worst]
-    if against is not None:
-        ref_meta, ref_table = read_results(against)
-        ref = _kpis(ref_table)
-        rep["reference"] = ref_meta.get("name", str(against))
-        for name, x in kpis.items():
-            y = ref[name]
-            if not (len(x) and len(y)):
-                continue
-            fx, lo_x, hi_x, rx = bootstrap_quantile(x, quantile, confidence, rng)
-            fy, lo_y, hi_y, ry = bootstrap_quantile(y, quantile, confidence, rng)
-            p_worse = float(np.mean(rx > ry))
-            rep["relative"].append({
-                "kpi": name, "quantile": quantile, "family": fx, "reference": fy,
-                "family_interval": (lo_x, hi_x), "reference_interval": (lo_y, hi_y),
-                "probability_worse": p_worse,
-                "verdict": "FAIL" if p_worse >= confidence else "PASS"})
-    if plots is not None:
-        rep["plots"] = _plots(Path(plots), kpis, ref if against is not None else None,
-                              rep["name"], rep.get("reference"))
-    return rep
+    rows = table.filter(ok).select(cols).to_pylist()
+    out["worst"]["buff"] = sorted(rows, key=lambda r: r["peak_buff_kN"])[:worst]
+    out["worst"]["draft"] = sorted(rows, key=lambda r: -r["peak_draft_kN"])[:worst]
+    for name, x in kpis.items():
+        y = ref.get(name) if ref else None
+        if y is None or not (len(x) and len(y)):
+            continue
+        fx, lo_x, hi_x, rx = bootstrap_quantile(x, quantile, confidence, rng)
+        fy, lo_y, hi_y, ry = bootstrap_quantile(y, quantile, confidence, rng)
+        p_worse = float(np.mean(rx > ry))
+        out["relative"].append({
+            "kpi": name, "quantile": quantile, "family": fx, "reference": fy,
+            "family_interval": (lo_x, hi_x), "reference_interval": (lo_y, hi_y),
+            "probability_worse": p_worse, "verdict": "FAIL" if p_worse >= confidence else "PASS"})
+    return out
 
 
 def _z(confidence: float) -> float:
@@ -187,10 +206,11 @@ def _wilson(k: int, n: int, z: float) -> tuple[float, float]:
     d = 1 + z * z / n
     c = (p + z * z / (2 * n)) / d
     h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
-    return (max(0.0, c - h), min(1.0, c + h))
+    return (0.0 if k == 0 else max(0.0, c - h), 1.0 if k == n else min(1.0, c + h))
 
 
-def _plots(folder: Path, kpis: dict, ref: dict | None, name: str, ref_name: str | None) -> list:
+def _plots(folder: Path, manoeuvre: str, kpis: dict, ref: dict | None, name: str,
+           ref_name: str | None) -> list:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -212,10 +232,10 @@ def _plots(folder: Path, kpis: dict, ref: dict | None, name: str, ref_name: str 
                 else:
                     ax.hist(data, bins=40, alpha=0.6, label=lab)
                     ax.set_ylabel("runs")
-            ax.set_xlabel(f"{label} [{unit}]")
+            ax.set_xlabel(f"{label} [{unit}], {manoeuvre}")
             ax.legend()
             ax.grid(alpha=0.3)
-            path = folder / f"{kind}_{kpi}.png"
+            path = folder / f"{kind}_{manoeuvre}_{kpi}.png"
             fig.tight_layout()
             fig.savefig(path, dpi=90)
             plt.close(fig)
@@ -239,30 +259,35 @@ def format_report(rep: dict) -> str:
     lines = [f"campaign {rep['name']}: {rep['runs']} of {rep['expected_runs']} runs, "
              f"{rep['failed']} failed"]
     lines += [f"  {m}" for m in rep["failures"]]
-    lines.append(f"quantiles (estimate [{100 * c:g} % bootstrap interval]):")
-    for kpi, qs in rep["quantiles"].items():
-        label, unit = KPIS[kpi]
-        cells = "  ".join(f"q{q}: {e:.4g} [{lo:.4g}, {hi:.4g}]" for q, (e, lo, hi) in qs.items())
-        lines.append(f"  {label} [{unit}]  {cells}")
-    vc = rep["verdict_counts"]
-    lines.append(f"verdicts: {vc['draft_ok']} runs beyond the draft strength, {vc['buff_ok']} "
-                 f"beyond the buff strength, {vc['adhesion_ok']} beyond the adhesion limit")
-    for kpi, e in rep["exceedance"].items():
-        lo, hi = e["interval"]
-        lines.append(f"P({kpi} > {e['threshold']:g}) = {e['probability']:.4g} "
-                     f"({e['count']}/{e['of']}; [{lo:.4g}, {hi:.4g}])")
-    for which, rows in rep["worst"].items():
-        lines.append(f"worst runs by {which}:")
-        for r in rows:
-            lines.append(f"  run {r['run_id']}: {r['family']}, {r['wagons']} wagons, "
-                         f"{r['speed_kmh']:.1f} km/h, draft {r['peak_draft_kN']:.0f} kN "
-                         f"@{r['peak_draft_coupler']}, buff {r['peak_buff_kN']:.0f} kN "
-                         f"@{r['peak_buff_coupler']}, adhesion {r['max_adhesion_demand']:.3f}")
-    if rep["relative"]:
-        lines.append(f"relative approach against {rep['reference']}:")
-        for v in rep["relative"]:
+    for name, sec in rep["manoeuvres"].items():
+        lines.append(f"manoeuvre {name} ({sec['runs']} runs), quantiles "
+                     f"(estimate [{100 * c:g} % bootstrap interval]):")
+        for kpi, qs in sec["quantiles"].items():
+            label, unit = KPIS[kpi]
+            cells = "  ".join(f"q{q}: {e:.4g} [{lo:.4g}, {hi:.4g}]"
+                              for q, (e, lo, hi) in qs.items())
+            lines.append(f"  {label} [{unit}]  {cells}")
+        vc = sec["verdict_counts"]
+        lines.append(f"  verdicts: {vc['draft_ok']} runs beyond the draft strength, "
+                     f"{vc['buff_ok']} beyond the buff strength, {vc['adhesion_ok']} beyond the "
+                     "adhesion limit")
+        for kpi, e in sec["exceedance"].items():
+            lo, hi = e["interval"]
+            lines.append(f"  P({kpi} > {e['threshold']:g}) = {e['probability']:.4g} "
+                         f"({e['count']}/{e['of']}; [{lo:.4g}, {hi:.4g}])")
+        for which, rows in sec["worst"].items():
+            lines.append(f"  worst runs by {which}:")
+            for r in rows:
+                lines.append(f"    run {r['run_id']}: {r['family']}, {r['wagons']} wagons, "
+                             f"{r['speed_kmh']:.1f} km/h, draft {r['peak_draft_kN']:.0f} kN "
+                             f"@{r['peak_draft_coupler']}, buff {r['peak_buff_kN']:.0f} kN "
+                             f"@{r['peak_buff_coupler']}, adhesion "
+                             f"{r['max_adhesion_demand']:.3f}")
+        if sec["relative"]:
+            lines.append(f"  relative approach against {rep['reference']}:")
+        for v in sec["relative"]:
             label, unit = KPIS[v["kpi"]]
-            lines.append(f"  {v['verdict']}  {label} q{v['quantile']:g}: {v['family']:.4g} vs "
+            lines.append(f"    {v['verdict']}  {label} q{v['quantile']:g}: {v['family']:.4g} vs "
                          f"{v['reference']:.4g} {unit}, P(family worse) = "
                          f"{v['probability_worse']:.3f}")
     for p in rep["plots"]:

@@ -70,9 +70,12 @@ def run(args: argparse.Namespace) -> int:
     positive_int(args.jobs, "--jobs")
     c = load_campaign(args.file)
     todo = missing_batches(c, args.out)
-    done_runs = c.runs - sum(min(c.batch_size, c.runs - b * c.batch_size) for b in todo)
+    per_train = len(c.manoeuvres)  # a row (a run) per train and manoeuvre
+    done_runs = per_train * (c.runs - sum(min(c.batch_size, c.runs - b * c.batch_size)
+                                          for b in todo))
     with make_executor(args.jobs, args.dask) as executor:
-        bar = tqdm(total=c.runs, initial=done_runs, unit="run", desc=c.name, file=sys.stderr,
+        bar = tqdm(total=per_train * c.runs, initial=done_runs, unit="run", desc=c.name,
+                   file=sys.stderr,
                    disable=args.quiet, smoothing=0.1)
         failed = [0]
 
@@ -108,5 +111,6 @@ def report(args: argparse.Namespace) -> int:
                           thresholds=parse_thresholds(args.threshold), quantile=args.quantile,
                           confidence=args.confidence, worst=args.worst, plots=args.plots)
     print(json.dumps(rep, indent=2, default=float) if args.json else format_report(rep))
-    failed = [v for v in rep.get("relative", []) if v["verdict"] == "FAIL"]
+    failed = [v for sec in rep["manoeuvres"].values() for v in sec["relative"]
+              if v["verdict"] == "FAIL"]
     return 1 if failed else 0

@@ -1,4 +1,4 @@
-"""Campaign files: randomised train families, parameter uncertainties, a manoeuvre, sampling.
+"""Campaign files: randomised train families, parameter uncertainties, manoeuvres, sampling.
 
 A campaign describes thousands of runs by distributions instead of listing them; the studies
 layer (:mod:`ltd_brake_ros.studies.campaign`) draws each run from it. Every distribution is
@@ -157,10 +157,12 @@ class Family:
 
 @dataclass(frozen=True)
 class Manoeuvre:
-    """What each train does.
+    """One thing every train of the campaign does (each train does each manoeuvre).
 
     Attributes
     ----------
+    name : str
+        Label in the results (default: the kind).
     kind : str
         ``emergency`` (from speed until standstill), ``service`` (an application of
         ``demand`` at t = 0, released at ``release_s``, run for ``duration_s``) or
@@ -175,6 +177,7 @@ class Manoeuvre:
         Length of a service or traction run [s].
     """
 
+    name: str
     kind: str
     speed_kmh: Distribution
     demand: float = 1.0
@@ -196,6 +199,7 @@ class Campaign:
     seed : int
         Campaign seed; run i draws from (seed, i).
     runs : int
+        Trains drawn; each runs every manoeuvre.
     sampling : str
         ``monte_carlo`` or ``latin_hypercube`` (over the run-level dimensions).
     batch_size : int
@@ -204,7 +208,8 @@ class Campaign:
     couplers, brake_params : tuple of Variant
     uncertainties : dict
         Fittable parameter short name -> Distribution.
-    manoeuvre : Manoeuvre
+    manoeuvres : tuple of Manoeuvre
+        Each train runs each of them (one row per train and manoeuvre).
     adhesion_limit : float
         Largest adhesion demand (brake force / weight) deemed safe [-].
     step_s : float
@@ -226,7 +231,7 @@ class Campaign:
     couplers: tuple
     brake_params: tuple
     uncertainties: dict
-    manoeuvre: Manoeuvre
+    manoeuvres: tuple
     adhesion_limit: float
     step_s: float
     vehicle_types: dict
@@ -409,22 +414,37 @@ def _library(extra: Mapping, source: str) -> dict[str, float]:
             for name in sorted(set(shipped) | set(extra))}
 
 
-def _manoeuvre(data: Any, source: str) -> Manoeuvre:
-    f = Fields(data, source, "manoeuvre")
+def _manoeuvre(data: Any, source: str, path: str) -> Manoeuvre:
+    f = Fields(data, source, path)
     kind = f.string("kind", choices=MANOEUVRES)
+    name = f.string("name", kind)
     if kind == "emergency":
-        f.reject_unknown({"kind", "speed_kmh"})
-        return Manoeuvre(kind, _distribution(f, "speed_kmh", lo=1.0, hi=400.0))
+        f.reject_unknown({"name", "kind", "speed_kmh"})
+        return Manoeuvre(name, kind, _distribution(f, "speed_kmh", lo=1.0, hi=400.0))
     if kind == "service":
-        f.reject_unknown({"kind", "speed_kmh", "demand", "release_s", "duration_s"})
+        f.reject_unknown({"name", "kind", "speed_kmh", "demand", "release_s", "duration_s"})
         duration = f.number("duration_s", lo=0.0, lo_open=True, hi=3600.0)
         release = f.number("release_s", duration, lo=0.0, lo_open=True, hi=duration)
-        return Manoeuvre(kind, _distribution(f, "speed_kmh", lo=0.0, hi=400.0),
+        return Manoeuvre(name, kind, _distribution(f, "speed_kmh", lo=0.0, hi=400.0),
                          f.number("demand", 1.0, lo=0.0, lo_open=True, hi=1.0), release, duration)
-    f.reject_unknown({"kind", "speed_kmh", "demand", "duration_s"})
-    return Manoeuvre(kind, _distribution(f, "speed_kmh", lo=0.0, hi=400.0, default=0.0),
+    f.reject_unknown({"name", "kind", "speed_kmh", "demand", "duration_s"})
+    return Manoeuvre(name, kind, _distribution(f, "speed_kmh", lo=0.0, hi=400.0, default=0.0),
                      f.number("demand", 1.0, lo=0.0, lo_open=True, hi=1.0), None,
                      f.number("duration_s", lo=0.0, lo_open=True, hi=3600.0))
+
+
+def _manoeuvres(f: Fields) -> tuple:
+    entries = f.data.get("manoeuvres")
+    if not isinstance(entries, list) or not entries:
+        raise f.error("manoeuvres", "missing or not a non-empty list (each with kind: "
+                      f"{', '.join(MANOEUVRES)})")
+    out = tuple(_manoeuvre(e, f.source, f"manoeuvres[{i}]") for i, e in enumerate(entries))
+    names = [m.name for m in out]
+    for i, name in enumerate(names):
+        if name in names[:i]:
+            raise InputError(f.source, f"manoeuvres[{i}].name", f"{name!r} is used twice; give "
+                             "each manoeuvre a distinct name")
+    return out
 
 
 def campaign_from_mapping(data: Any, source: str, digest: str = "",
@@ -453,7 +473,7 @@ def campaign_from_mapping(data: Any, source: str, digest: str = "",
     """
     f = Fields(data, source)
     f.reject_unknown({"name", "description", "seed", "runs", "sampling", "batch_size", "families",
-                      "couplers", "brake_params", "uncertainties", "manoeuvre", "adhesion_limit",
+                      "couplers", "brake_params", "uncertainties", "manoeuvres", "adhesion_limit",
                       "step_s", "vehicle_types"})
     runs = f.integer("runs", lo=1, hi=MAX_RUNS)
     extra = f.data.get("vehicle_types") or {}
@@ -482,8 +502,6 @@ def campaign_from_mapping(data: Any, source: str, digest: str = "",
             raise unc.error(str(key), f"no {part} variant of the campaign has the field "
                             f"{fit.field}")
         uncertainties[str(key)] = dist
-    if f.data.get("manoeuvre") is None:
-        raise f.error("manoeuvre", "missing (kind: emergency, service or traction_start)")
     step = f.number("step_s", 0.01, lo=1e-4, hi=0.1)
     return Campaign(
         name=f.string("name", Path(source).stem), source=str(source), digest=digest,
@@ -491,7 +509,7 @@ def campaign_from_mapping(data: Any, source: str, digest: str = "",
         sampling=f.string("sampling", "monte_carlo", choices=("monte_carlo", "latin_hypercube")),
         batch_size=f.integer("batch_size", 50, lo=1, hi=100_000), families=families,
         couplers=coupler_variants, brake_params=brake_variants, uncertainties=uncertainties,
-        manoeuvre=_manoeuvre(f.data["manoeuvre"], source),
+        manoeuvres=_manoeuvres(f),
         adhesion_limit=f.number("adhesion_limit", 0.15, lo=0.0, lo_open=True, hi=1.0),
         step_s=step, vehicle_types=dict(extra), vehicle_lengths_m=library)
 

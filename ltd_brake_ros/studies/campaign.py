@@ -74,8 +74,8 @@ def _whole(lo: int, hi: int, u: float) -> int:
 
 def dimensions(c: Campaign) -> tuple[str, ...]:
     """Names of the run-level draws (the Latin hypercube's dimensions), in draw order."""
-    return ("family", "size", "locomotives", "speed_kmh", "coupler", "brake_params",
-            *sorted(c.uncertainties))
+    return ("family", "size", "locomotives", "coupler", "brake_params",
+            *sorted(c.uncertainties), *(f"speed_kmh:{m.name}" for m in c.manoeuvres))
 
 
 @functools.lru_cache(maxsize=4)
@@ -107,7 +107,8 @@ def draw(c: Campaign, run_id: int) -> tuple[dict, dict]:
     Returns
     -------
     sample : dict
-        Every drawn quantity (the row's input columns).
+        Every drawn quantity (the row's input columns); ``speed_kmh`` maps each manoeuvre's
+        name to its initial speed.
     consist_data : dict
         The consist document of the train (see
         :func:`~ltd_brake_ros.inputs.consist_from_mapping`).
@@ -152,7 +153,8 @@ def draw(c: Campaign, run_id: int) -> tuple[dict, dict]:
     sample = {
         "family": fam.name, "wagons": len(wagons), "locomotives": n_loco,
         "locomotive_positions": ",".join(loco.positions[:n_loco]),
-        "speed_kmh": inverse_cdf(c.manoeuvre.speed_kmh, u["speed_kmh"]),
+        "speed_kmh": {m.name: inverse_cdf(m.speed_kmh, u[f"speed_kmh:{m.name}"])
+                      for m in c.manoeuvres},
         "coupler": c.couplers[_choose([v.weight for v in c.couplers], u["coupler"])].name,
         "brake_params": c.brake_params[_choose([v.weight for v in c.brake_params],
                                                u["brake_params"])].name,
@@ -221,7 +223,8 @@ def schema_of(c: Campaign) -> pa.Schema:
     -------
     pyarrow.Schema
     """
-    head = [("run_id", pa.int64()), ("seed", pa.int64()), ("status", pa.string()),
+    head = [("run_id", pa.int64()), ("manoeuvre", pa.string()), ("seed", pa.int64()),
+            ("status", pa.string()),
             ("message", pa.string()), ("family", pa.string()), ("wagons", pa.int32()),
             ("locomotives", pa.int32()), ("locomotive_positions", pa.string()),
             ("speed_kmh", pa.float64()), ("coupler", pa.string()), ("brake_params", pa.string()),
@@ -233,8 +236,10 @@ def schema_of(c: Campaign) -> pa.Schema:
     return pa.schema(head + unc + list(KPI_FIELDS))
 
 
-def run_one(c: Campaign, run_id: int) -> dict:
-    """Draw and run one run of a campaign; a failure becomes a row with its message.
+def run_one(c: Campaign, run_id: int) -> list[dict]:
+    """Draw train ``run_id`` of a campaign and run each manoeuvre with it.
+
+    A failure (of the draw or of a manoeuvre) becomes a row with its message.
 
     Parameters
     ----------
@@ -243,23 +248,32 @@ def run_one(c: Campaign, run_id: int) -> dict:
 
     Returns
     -------
-    dict
-        One row (see :func:`schema_of`); ``status`` is ``ok`` or ``failed``.
+    list of dict
+        One row per manoeuvre, in the file's order (see :func:`schema_of`); ``status`` is
+        ``ok`` or ``failed``.
     """
-    row: dict = {"run_id": run_id, "seed": c.seed, "status": "ok", "message": ""}
+    rows = [{"run_id": run_id, "manoeuvre": m.name, "seed": c.seed, "status": "ok",
+             "message": ""} for m in c.manoeuvres]
     try:
         sample, data = draw(c, run_id)
-        row.update(sample)
+        for m, row in zip(c.manoeuvres, rows):
+            row.update(sample, speed_kmh=sample["speed_kmh"][m.name])
         consist = consist_from_mapping(data, f"{c.source} run {run_id}")
         params, lut = _models(c, sample)
-        row.update(_simulate(c, consist, sample["speed_kmh"], params, lut))
     except Exception as exc:  # noqa: BLE001 - a failed run is a result, recorded with its reason
-        row["status"], row["message"] = "failed", f"{type(exc).__name__}: {exc}"
-    return row
+        for row in rows:
+            row["status"], row["message"] = "failed", f"{type(exc).__name__}: {exc}"
+        return rows
+    for m, row in zip(c.manoeuvres, rows):
+        try:
+            row.update(_simulate(c, m, consist, row["speed_kmh"], params, lut))
+        except Exception as exc:  # noqa: BLE001 - as above
+            row["status"], row["message"] = "failed", f"{type(exc).__name__}: {exc}"
+    return rows
 
 
-def _simulate(c: Campaign, consist, speed_kmh: float, params, lut) -> dict:
-    """KPIs of one run of the campaign's manoeuvre."""
+def _simulate(c: Campaign, m, consist, speed_kmh: float, params, lut) -> dict:
+    """KPIs of one run of manoeuvre ``m``."""
     weight_N = np.array([v.mass_kg for v in consist.vehicles]) * G
     adhesion = {"value": 0.0, "vehicle": 0, "last": None}
 
@@ -272,7 +286,6 @@ def _simulate(c: Campaign, consist, speed_kmh: float, params, lut) -> dict:
         note(snap.brake_force_N / weight_N)
         adhesion["last"] = snap
 
-    m = c.manoeuvre
     if m.kind == "emergency":
         r = emergency_stop(consist, speed_kmh, params, lut, step_s=c.step_s, chunk_s=CHUNK_S,
                            on_chunk=watch)
@@ -329,7 +342,7 @@ def _standstill_brake_force_N(consist, params, snap) -> np.ndarray:
 
 
 def run_batch(c: Campaign, batch: int) -> pa.Table:
-    """Run batch ``batch`` (runs ``batch * batch_size`` onwards) into a table.
+    """Run batch ``batch`` (trains ``batch * batch_size`` onwards) into a table.
 
     Parameters
     ----------
@@ -339,10 +352,12 @@ def run_batch(c: Campaign, batch: int) -> pa.Table:
     Returns
     -------
     pyarrow.Table
-        One row per run, in run order, with :func:`schema_of`.
+        One row per train and manoeuvre, by run id and then manoeuvre, with
+        :func:`schema_of`.
     """
     first = batch * c.batch_size
-    rows = [run_one(c, i) for i in range(first, min(first + c.batch_size, c.runs))]
+    rows = [row for i in range(first, min(first + c.batch_size, c.runs))
+            for row in run_one(c, i)]
     schema = schema_of(c)
     return pa.Table.from_pylist([{k: r.get(k) for k in schema.names} for r in rows],
                                 schema=schema)

@@ -209,7 +209,8 @@ def _prepare(c: Campaign, out: Path) -> None:
     shutil.copyfile(c.source, out / "campaign.yaml")
     data = {"name": c.name, "campaign_file": str(Path(c.source).resolve()),
             "digest": c.digest, "seed": c.seed, "runs": c.runs, "batch_size": c.batch_size,
-            "sampling": c.sampling, "package_version": _package_version(),
+            "sampling": c.sampling, "manoeuvres": [m.name for m in c.manoeuvres],
+            "package_version": _package_version(),
             "columns": schema_of(c).names}
     tmp = manifest.with_suffix(".tmp")
     tmp.write_text(json.dumps(data, indent=2) + "\n")
@@ -251,7 +252,8 @@ def run_campaign(c: Campaign, out: str | os.PathLike, executor: Executor | None 
     executor : Executor, optional
         Default: in this process.
     progress : callable, optional
-        Called with (runs done, of which failed) after each batch written.
+        Called with (runs done, of which failed) after each batch written; a run is one
+        train under one manoeuvre.
 
     Returns
     -------
@@ -278,7 +280,7 @@ def run_campaign(c: Campaign, out: str | os.PathLike, executor: Executor | None 
 
 
 def read_results(out: str | os.PathLike) -> tuple[dict, pa.Table]:
-    """The manifest and every row of a results folder, sorted by run id.
+    """The manifest and every row of a results folder, sorted by run id and manoeuvre.
 
     Parameters
     ----------
@@ -306,4 +308,7 @@ def read_results(out: str | os.PathLike) -> tuple[dict, pa.Table]:
     if not files:
         raise InputError(out, "", "holds no results yet: run ltd-brake campaign run first")
     table = pa.concat_tables(pq.read_table(f) for f in files)
-    return meta, table.sort_by("run_id")
+    order = {name: i for i, name in enumerate(meta.get("manoeuvres", []))}
+    rank = pa.array([order.get(m, len(order)) for m in table["manoeuvre"].to_pylist()])
+    table = table.append_column("_rank", rank)
+    return meta, table.sort_by([("run_id", "ascending"), ("_rank", "ascending")]).drop(["_rank"])

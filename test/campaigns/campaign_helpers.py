@@ -10,7 +10,8 @@ seed: 11
 runs: {runs}
 batch_size: {batch}
 sampling: {sampling}
-manoeuvre: {{kind: emergency, speed_kmh: {{uniform: [{v_lo}, {v_hi}]}}}}
+manoeuvres:
+  - {{kind: emergency, speed_kmh: {{uniform: [{v_lo}, {v_hi}]}}}}
 families:
   - name: short
     wagons: [3, 5]

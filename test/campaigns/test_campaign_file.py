@@ -26,6 +26,9 @@ BAD = [
     ("runs: 16", "runs: 0", "runs", "between"),
     ("wagons: [3, 5]", "length_m: [2.0, 5.0]", "families[0].length_m", "no train fits"),
     ("wagons: [3, 5]", "wagons: [5, 3]", "families[0].wagons", "exceeds"),
+    ("  - {kind: emergency,", "  - {kind: emergency, name: a, speed_kmh: 50.0}\n"
+     "  - {name: a, kind: emergency,",
+     "manoeuvres[1].name", "used twice"),
 ]
 
 
@@ -70,7 +73,7 @@ def test_latin_hypercube_puts_one_run_in_each_stratum(tmp_path):
     for column in design.T:
         assert sorted(np.floor(column * c.runs).astype(int)) == list(range(c.runs))
     # the drawn speeds are stratified too: one per 0.5 km/h band of [30, 50]
-    speeds = [draw(c, i)[0]["speed_kmh"] for i in range(c.runs)]
+    speeds = [draw(c, i)[0]["speed_kmh"]["emergency"] for i in range(c.runs)]
     assert sorted(np.floor((np.array(speeds) - 30.0) / 0.5).astype(int)) == list(range(40))
 
 

@@ -29,14 +29,15 @@ def test_quantiles_and_exceedance_match_the_table(families, tmp_path):
     rep = campaign_report(families["slow"], thresholds={"stopping_distance_m": 150.0},
                           plots=tmp_path)
     x = np.array(read_results(families["slow"])[1]["stopping_distance_m"].to_pylist())
-    est, lo, hi = rep["quantiles"]["stopping_distance_m"]["0.5"]
+    sec = rep["manoeuvres"]["emergency"]
+    est, lo, hi = sec["quantiles"]["stopping_distance_m"]["0.5"]
     assert est == pytest.approx(np.median(x)) and lo <= est <= hi
-    e = rep["exceedance"]["stopping_distance_m"]
+    e = sec["exceedance"]["stopping_distance_m"]
     assert e["count"] == int((x > 150.0).sum()) and e["of"] == 30
     assert e["interval"][0] <= e["probability"] <= e["interval"][1]
     assert len(rep["plots"]) == 8 and all((tmp_path / p).stat().st_size > 1000
                                           for p in rep["plots"])
-    worst = rep["worst"]["buff"]
+    worst = sec["worst"]["buff"]
     assert worst[0]["peak_buff_kN"] == min(read_results(families["slow"])[1]["peak_buff_kN"]
                                            .to_pylist())
 

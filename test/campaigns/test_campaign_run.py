@@ -127,7 +127,7 @@ def test_adhesion_demand_is_the_peak_of_a_finely_sampled_stop(reference):
         sample, data = draw(c, run)
         consist = consist_from_mapping(data, "test")
         params, lut = _models(c, sample)
-        sim = Simulator(consist, sample["speed_kmh"], params, lut, step_s=c.step_s)
+        sim = Simulator(consist, sample["speed_kmh"]["emergency"], params, lut, step_s=c.step_s)
         weight_N = np.array([v.mass_kg for v in consist.vehicles]) * G
         peak = sim.advance(c.step_s, Commands(emergency=True)).brake_force_N / weight_N
         while sim.stop_time_s is None:
@@ -139,26 +139,41 @@ def test_adhesion_demand_is_the_peak_of_a_finely_sampled_stop(reference):
         assert table["max_adhesion_vehicle"][run].as_py() == int(np.argmax(peak)) + 1
 
 
-@pytest.mark.parametrize("manoeuvre,stops", [
-    ("{kind: service, speed_kmh: 40.0, demand: 0.5, release_s: 20.0, duration_s: 30.0}", False),
-    ("{kind: service, speed_kmh: 30.0, demand: 1.0, duration_s: 60.0}", True),
-    ("{kind: traction_start, demand: 1.0, duration_s: 20.0}", False),
-])
-def test_service_and_traction_manoeuvres(tmp_path, manoeuvre, stops):
+def test_every_train_runs_every_manoeuvre(tmp_path):
+    # a service application released at 20 s, a full one to standstill, a traction start
+    manoeuvres = """manoeuvres:
+  - {name: emergency, kind: emergency, speed_kmh: 40.0}
+  - {name: partial, kind: service, speed_kmh: 40.0, demand: 0.5, release_s: 20.0,
+     duration_s: 30.0}
+  - {name: full, kind: service, speed_kmh: 30.0, demand: 1.0, duration_s: 60.0}
+  - {name: start, kind: traction_start, demand: 1.0, duration_s: 20.0}
+"""
     path = write_campaign(tmp_path, runs=2, batch=2)
     text = path.read_text()
-    start = text.index("manoeuvre:")
-    end = text.index("\n", start)
-    path.write_text(text[:start] + f"manoeuvre: {manoeuvre}" + text[end:])
+    start = text.index("manoeuvres:")
+    end = text.index("families:")
+    path.write_text(text[:start] + manoeuvres + text[end:])
     c = load_campaign(path)
-    run_campaign(c, tmp_path / "out")
-    for r in read_results(tmp_path / "out")[1].to_pylist():
+    summary = run_campaign(c, tmp_path / "out")
+    rows = read_results(tmp_path / "out")[1].to_pylist()
+    assert summary["runs"] == 8 and [(r["run_id"], r["manoeuvre"]) for r in rows] == [
+        (i, m) for i in range(2) for m in ("emergency", "partial", "full", "start")]
+    for r in rows:
         assert r["status"] == "ok", r["message"]
+        same_train = rows[4 * r["run_id"]]
+        assert r["wagon_mass_t"] == same_train["wagon_mass_t"] and r["k0"] == same_train["k0"]
+        stops = r["manoeuvre"] in ("emergency", "full")
         assert np.isfinite(r["stopping_distance_m"]) == stops
-        assert r["steps"] == pytest.approx(c.manoeuvre.duration_s / c.step_s, abs=1) or stops
-        if c.manoeuvre.kind == "traction_start":
+        if r["manoeuvre"] in ("partial", "start"):
+            # runs for the whole duration: 30 s and 20 s of 0.01 s steps
+            assert r["steps"] == {"partial": 3000, "start": 2000}[r["manoeuvre"]]
+        if r["manoeuvre"] == "start":
             # pulling away from rest: the couplers behind the locomotive are in draft
             assert r["peak_draft_kN"] > 10.0 and r["max_adhesion_demand"] == 0.0
+    by = {(r["run_id"], r["manoeuvre"]): r for r in rows}
+    for i in range(2):
+        # the emergency stop from 40 km/h is shorter than the half service application's run
+        assert by[i, "emergency"]["stopping_distance_m"] < 40 / 3.6 * 30.0
 
 
 def test_a_killed_pool_worker_has_its_batches_redone(reference, tmp_path):
