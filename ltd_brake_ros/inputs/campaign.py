@@ -386,7 +386,7 @@ def _family(data: Any, source: str, path: str, library: dict) -> Family:
                                      tare, payload, w.number("loaded_fraction", 1.0, lo=0.0,
                                                              hi=1.0)))
     wagon_types.sort(key=lambda w: w.type)  # draws do not depend on the file's key order
-    shortest = min(library[t.type] for t in wagon_types)
+    shortest = min(library[t.type] for t in wagon_types)  # [m]
     loco = Fields(f.data.get("locomotives") or {}, source, f.sub("locomotives"))
     loco.reject_unknown({"type", "count", "positions"})
     ltype = loco.string("type", "E402B")
@@ -398,8 +398,10 @@ def _family(data: Any, source: str, path: str, library: dict) -> Family:
             p not in LOCO_POSITIONS for p in positions) or positions[0] != "head":
         raise loco.error("positions", f"must list a position ({', '.join(LOCO_POSITIONS)}) for "
                          f"each of up to {count[1]} locomotives, the first at head")
-    if length is not None and length[1] < shortest:
-        raise f.error("length_m", f"no train fits: the shortest wagon is {shortest:g} m long")
+    least_m = count[0] * library[ltype] + shortest
+    if length is not None and length[1] < least_m:
+        raise f.error("length_m", f"no train fits: {count[0]} {ltype} and the shortest wagon "
+                      f"are {least_m:g} m long, more than {length[1]:g} m")
     return Family(f.string("name", path), f.number("weight", 1.0, lo=0.0, lo_open=True), wagons,
                   length, tuple(wagon_types), f.number("g_fraction", 0.0, lo=0.0, hi=1.0),
                   f.number("isolated_fraction", 0.0, lo=0.0, hi=1.0),

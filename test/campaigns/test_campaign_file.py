@@ -103,3 +103,14 @@ def test_missing_extra_is_one_line(tmp_path, capsys, monkeypatch):
     assert capsys.readouterr().err.strip() == (
         "ltd-brake campaign: error: distributed: not installed; campaigns need it: "
         "pip install 'ltd_brake_ros[campaign]'")
+
+
+def test_length_range_sets_the_wagon_count(tmp_path):
+    path = write_campaign(tmp_path, runs=50)
+    path.write_text(path.read_text().replace("wagons: [3, 5]", "length_m: [200.0, 300.0]"))
+    c = load_campaign(path)
+    loco, wagon = c.vehicle_lengths_m["E402B"], c.vehicle_lengths_m["Shimmns"]
+    lengths = [loco + wagon * draw(c, i)[0]["wagons"] for i in range(c.runs)]
+    # wagons are added while the train stays within the drawn length: one wagon short of it
+    assert max(lengths) <= 300.0 and min(lengths) > 200.0 - wagon
+    assert len(set(lengths)) >= 7  # (300 - 200) / 12.64 m: every count in between occurs
