@@ -46,6 +46,9 @@ __all__ = ["read_bag", "bag_info", "BagInfo", "TopicInfo", "BagError", "Truncate
 MAX_CHUNK_BYTES = 256 << 20
 #: Most message data held to put overlapping chunks in log-time order [bytes].
 MAX_REORDER_BYTES = 256 << 20
+# Python objects of one message held for sorting, beyond its payload [bytes] (measured: 337
+# bytes for a 16-byte payload with CPython 3.11).
+_HELD_OVERHEAD = 320
 #: Largest record other than a chunk, attachment or message read whole [bytes].
 MAX_RECORD_BYTES = 64 << 20
 #: Largest ``metadata.yaml`` read [bytes] (rosbag2 writes a few kB).
@@ -558,14 +561,14 @@ def file_messages(index: FileIndex, *, strict: bool = True,
             for m in msgs:
                 pushed += 1
                 heapq.heappush(heap, (m[0], pushed, m))
-                held += len(m[4]) + 64
+                held += len(m[4]) + _HELD_OVERHEAD
             if held > MAX_REORDER_BYTES:
                 raise BagError(index.path, "", "messages out of log-time order across more than "
                                f"{MAX_REORDER_BYTES >> 20} MiB of the file: too far apart to "
                                "sort while reading")
             while heap and heap[0][0] <= bound:
                 m = heapq.heappop(heap)[2]
-                held -= len(m[4]) + 64
+                held -= len(m[4]) + _HELD_OVERHEAD
                 yield emit(m)
     finally:
         f.close()
