@@ -366,9 +366,8 @@ def _frame(f, size: int, index: FileIndex, strict: bool) -> None:
                     _check_summary(f, at, body, stats_at, index)
                     index.complete = True
                     return
-                if opcode == Opcode.STATISTICS:
-                    stats_at, index.statistics = at, Statistics.read(
-                        ReadDataStream(io.BytesIO(body)))
+                if opcode == Opcode.STATISTICS:  # a summary: unused unless its CRC checks
+                    stats_at, index.statistics = at, _statistics(body)
                 else:
                     _parse_small(opcode, body, index)
             else:  # indexes, attachments, summary offsets: rebuilt by writers, not needed
@@ -383,10 +382,17 @@ def _frame(f, size: int, index: FileIndex, strict: bool) -> None:
             return
 
 
+def _statistics(body: bytes) -> Statistics | None:
+    try:
+        return Statistics.read(ReadDataStream(io.BytesIO(body)))
+    except (struct.error, McapError, EOFError):
+        return None
+
+
 def _check_summary(f, footer_at: int, body: bytes, stats_at: int | None,
                    index: FileIndex) -> None:
     """Keep the statistics only if they lie in a summary section that passes its CRC check."""
-    if stats_at is None or len(body) < _FOOTER.size:
+    if stats_at is None or index.statistics is None or len(body) < _FOOTER.size:
         index.statistics = None
         return
     summary_start, offset_start, crc = _FOOTER.unpack_from(body)
@@ -430,7 +436,7 @@ def _decompress(compression: str, data: bytes, size: int) -> bytes:
 
 def _chunk_records(body: bytes) -> bytes:
     """The uncompressed records of a chunk, checked against its stated size and CRC."""
-    if len(body) < 28:
+    if len(body) < 32:
         raise ValueError("too short for a chunk")
     size, crc, name_len = struct.unpack_from("<QII", body, 16)
     pos = 32 + name_len
