@@ -5,6 +5,7 @@ import json
 
 import pytest
 
+from cli_fixtures import folder, one_line_error  # noqa: F401 - fixtures
 from ltd_brake_ros.cli.main import main
 
 

@@ -8,6 +8,7 @@ import sys
 import pytest
 import yaml
 
+from cli_fixtures import one_line_error  # noqa: F401 - fixtures
 from ltd_brake_ros.cli.main import main
 from ltd_brake_ros.inputs import get_scenario
 from ltd_brake_ros.physics.constants import KMH_PER_MS, STANDSTILL_M_S

@@ -1,4 +1,8 @@
-"""Shared by the command-line tests."""
+"""Fixtures shared by the command-line tests; a test module imports the ones it uses.
+
+Not a ``conftest.py``: the ROS tests import the suite's root ``conftest`` by name, and a second
+module of that name in a session shadows it.
+"""
 from __future__ import annotations
 
 import pytest
