@@ -83,7 +83,8 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
                  window_s: float = 0.0, new_overruns: int = 0, chunks: int = 0,
                  overruns: int = 0, real_time_factor: float = 0.0,
                  commands: Commands = Commands(), rejected: int = 0, handled: int = 0,
-                 recording: str = "off", recording_error: str | None = None) -> PlantStatus:
+                 resets: int = 0, recording: str = "off",
+                 recording_error: str | None = None) -> PlantStatus:
     """The diagnostics report of the plant.
 
     Parameters
@@ -104,6 +105,8 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
         The inputs in force.
     rejected, handled : int
         Input messages rejected, and handled in all.
+    resets : int
+        Resets done since start-up.
     recording : str
         The bag folder, or ``off``, ``failed``, ``finished``.
     recording_error : str or None
@@ -142,6 +145,7 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
         "traction_command": f"{commands.traction:g}",
         "rejected_inputs": str(rejected),
         "inputs_handled": str(handled),
+        "resets": str(resets),
         "recording": recording,
     }
     if recording_error:

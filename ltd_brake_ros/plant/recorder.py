@@ -2,17 +2,23 @@
 
 The plant opens the bag at start-up, writes every message it publishes or receives, flushes
 due chunks between chunks and while idle, and closes the bag when the run ends (shutdown or a
-simulator failure). ``~/reset`` starts the next run in ``<base>_2``, ``<base>_3``, ... A write
-error (a full disk) stops the recording, not the plant: the chunks already on disk stay
-readable (``ltd-brake recover`` makes the file a complete bag).
+simulator failure). A run is recorded only into a folder of its own: the first one into
+``<base>``, which must not exist or be empty; ``~/reset`` starts the next run in the next free
+``<base>_2``, ``<base>_3``, ... (a name an earlier run took is skipped). A write error (a full
+disk) stops the recording, not the plant: the chunks already on disk stay readable
+(``ltd-brake recover`` makes the file a complete bag).
 """
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from ..recording.bag import BagWriter
 from .settings import StartupError
+
+#: Folder names ``<base>_k`` tried for the next run before giving up.
+MAX_FOLDER_SEARCH = 1000
 
 
 class Recorder:
@@ -42,7 +48,7 @@ class Recorder:
         self._metadata = metadata
         self._make_writer = writer
         self._writer = None
-        self._runs = 0
+        self._suffix = 0  # of the last folder opened: 1 is ``base``, k > 1 is ``base_k``
         #: Why the recording stopped (None while it works or once a run's bag was finished).
         self.error: str | None = None
 
@@ -58,16 +64,52 @@ class Recorder:
             return str(self._writer.folder)
         return "failed" if self.error else "finished"
 
-    def open(self) -> None:
-        """Open the next run's bag.
+    def check(self) -> None:
+        """Refuse now a first run's folder that :meth:`open` would refuse for its contents.
 
         Raises
         ------
         StartupError
-            The folder cannot be written (parameter ``record_dir``).
+            ``base`` holds anything already (parameter ``record_dir``).
         """
-        self._runs += 1
-        folder = self.base if self._runs == 1 else f"{self.base}_{self._runs}"
+        if not _free(self.base):
+            raise StartupError("record_dir", f"{self.base} exists and is not empty: give a new "
+                               "folder (a run is never recorded into another one's folder)")
+
+    def open(self) -> None:
+        """Open the first run's bag in ``base``.
+
+        Raises
+        ------
+        StartupError
+            ``base`` holds anything already, or cannot be written (parameter ``record_dir``).
+        """
+        self.check()
+        self._writer = self._start(self.base)
+        self._suffix, self.error = 1, None
+
+    def reopen(self) -> None:
+        """Start the next run's bag in the next free ``<base>_k``, then finish the current one.
+
+        Nothing changes when the new bag cannot be opened: the current bag (if any) stays open.
+
+        Raises
+        ------
+        StartupError
+            The new bag cannot be opened (parameter ``record_dir``, naming the folder).
+        """
+        first = self._suffix + 1
+        suffix = next((k for k in range(first, first + MAX_FOLDER_SEARCH)
+                       if _free(f"{self.base}_{k}")), None)
+        if suffix is None:
+            raise StartupError("record_dir", f"no free folder from {self.base}_{first} to "
+                               f"{self.base}_{first + MAX_FOLDER_SEARCH - 1}")
+        rec = self._start(f"{self.base}_{suffix}")
+        self.close()
+        self._writer, self._suffix, self.error = rec, suffix, None
+
+    def _start(self, folder: str):
+        """A writer on ``folder`` with every topic declared."""
         rec = None
         try:
             rec = self._make_writer(folder, metadata=self._metadata)
@@ -85,22 +127,8 @@ class Recorder:
             if isinstance(exc, (OSError, ValueError)):
                 raise StartupError("record_dir", f"cannot record to {folder}: {exc}") from None
             raise
-        self._writer = rec
-        self.error = None
         self._log.info(f"recording to {rec.folder}")
-
-    def reopen(self) -> None:
-        """Finish the current run's bag (if still open) and start the next one.
-
-        A bag that cannot be opened (the disk is still full) leaves the plant running without
-        recording; :attr:`error` says why.
-        """
-        self.close()
-        try:
-            self.open()
-        except StartupError as exc:
-            self.error = exc.reason
-            self._log.error(f"{exc}; the plant runs on without recording")
+        return rec
 
     def write(self, topic: str, data: bytes, stamp_ns: int) -> None:
         """Record serialized ``data`` on ``topic`` at simulated time ``stamp_ns`` [ns]."""
@@ -150,3 +178,12 @@ class Recorder:
             rec.close()
         except OSError:
             pass
+
+
+def _free(folder: str) -> bool:
+    """True if ``folder`` does not exist or is an empty directory."""
+    path = Path(folder)
+    try:
+        return not path.exists() or (path.is_dir() and next(path.iterdir(), None) is None)
+    except OSError:
+        return False  # unreadable: not ours to write into

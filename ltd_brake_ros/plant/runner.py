@@ -24,7 +24,7 @@ from ..simulator import Commands, SimulationError, Simulator, Snapshot
 from .diagnostics import DIAGNOSTICS_PERIOD_S, PaceWindow, PlantStatus, plant_status
 from .pacing import Clock, Pacer
 from .recorder import Recorder
-from .settings import PlantSettings
+from .settings import PlantSettings, StartupError
 
 #: Tolerance when comparing simulated times built from summed chunks [s].
 TIME_EPS_S = 1e-9
@@ -130,6 +130,8 @@ class PlantRunner:
         self.commands = Commands()
         #: Inputs handled (received or self-issued), accepted or rejected.
         self.handled = 0
+        #: Resets done (a refused one does not count).
+        self.resets = 0
         self.rejected: dict[str, int] = {}
         #: Simulated time of the last published state [ns].
         self.stamp_ns = 0
@@ -286,7 +288,7 @@ class PlantRunner:
             sim, state=state, reason=reason, achieved=achieved, window_s=window_s,
             new_overruns=new, chunks=stats.chunks, overruns=stats.overruns,
             real_time_factor=self.real_time_factor, commands=self.commands,
-            rejected=sum(self.rejected.values()), handled=self.handled,
+            rejected=sum(self.rejected.values()), handled=self.handled, resets=self.resets,
             recording="off" if rec is None else rec.state,
             recording_error=None if rec is None else rec.error)
 
@@ -418,11 +420,22 @@ class PlantRunner:
                 "rejected so far)")
 
     def _reset(self) -> tuple[bool, str]:
+        rec, recording = self.recorder, ""
+        if rec is not None:
+            # one run per bag (the report assumes it): the next run's bag is opened first, so
+            # a reset that could not be recorded does not happen (never a success while the
+            # recording has stopped); then the current bag is finished
+            current = rec.state
+            try:
+                rec.reopen()
+            except StartupError as exc:
+                goes_on = f"recording to {current}" if rec.active else "without recording"
+                text = f"not reset: {exc.reason}; the run goes on {goes_on}"
+                self._log.error(text)
+                return False, text
+            recording = f"; recording to {rec.state}"
         snap = self.sim.reset()
-        if self.recorder is not None:
-            # one run per bag (the report assumes it): finish the current one, unless a
-            # simulator failure or a write error already ended it, and start the next
-            self.recorder.reopen()
+        self.resets += 1
         self.commands = Commands()
         self._auto_brake_done = False
         self._lut_warned = False
@@ -432,7 +445,7 @@ class PlantRunner:
         self._restart_schedule(now)
         self._window.restart(now, 0.0)
         self._log.info("reset: initial state, brake released, t = 0 s")
-        return True, "reset to the initial state (brake released, t = 0 s)"
+        return True, f"reset to the initial state (brake released, t = 0 s){recording}"
 
     def _pause(self, pause: bool) -> tuple[bool, str]:
         if self.paused and not pause:

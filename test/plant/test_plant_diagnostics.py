@@ -10,7 +10,7 @@ KEYS = ["state", "sim_time_s", "real_time_factor", "achieved_real_time_factor", 
         "chunk_overruns", "emergency_command", "brake_command_time_s", "head_speed_kmh",
         "peak_draft_kN", "peak_draft_coupler", "peak_buff_kN", "peak_buff_coupler",
         "couplers_beyond_lut", "brake_demand", "traction_command", "rejected_inputs",
-        "inputs_handled", "recording"]
+        "inputs_handled", "resets", "recording"]
 
 
 def test_pace_window_measures_simulated_over_wall_time_since_the_last_report():

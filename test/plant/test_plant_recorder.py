@@ -161,6 +161,13 @@ def test_a_write_error_stops_the_recording_not_the_plant():
     assert status.level == WARN and status.message == "recording stopped"
     assert (status.values["recording"], status.values["recording_error"]) == \
         ("failed", rec.error)
+    # a reset that cannot record either is refused: the run goes on, unrecorded, as it was
+    rec._make_writer = functools.partial(FakeWriter, opened=[], fail_at={"open"})
+    chunks = plant.runner.stats.chunks
+    assert plant.request(plant.runner.reset()) == (
+        False, "not reset: cannot record to runs/r_2: [Errno 13] Permission denied; the run "
+        "goes on without recording")
+    assert plant.runner.resets == 0 and plant.runner.stats.chunks >= chunks
     # the next run records again, to a new folder
     opened_ok = []
     rec._make_writer = functools.partial(FakeWriter, opened=opened_ok)
@@ -169,17 +176,6 @@ def test_a_write_error_stops_the_recording_not_the_plant():
     plant.run_until(plant.clock.t + 1.01)
     assert plant.statuses[-1][1].level == OK
     assert len(opened_ok[0].messages) == 51  # the reset state and a second of chunks
-
-
-def test_a_bag_that_cannot_be_reopened_after_reset_leaves_the_plant_running():
-    opened = []
-    plant, rec = recording_plant(opened, lockstep=True)
-    rec._make_writer = functools.partial(FakeWriter, opened=opened, fail_at={"open"})
-    assert plant.request(plant.runner.reset())[0]
-    assert plant.log.at("error") == [
-        "parameter record_dir: cannot record to runs/r_2: [Errno 13] Permission denied; the "
-        "plant runs on without recording"]
-    assert rec.state == "failed" and plant.request(plant.runner.step())[0]
 
 
 def test_a_failing_close_counts_as_a_write_error():
@@ -207,3 +203,89 @@ def test_the_real_writer_yields_a_complete_readable_bag(tmp_path):
     assert [(t, n) for t, _, n, _ in read_bag(folder)] == \
         [("/t/brake_command", k * 20_000_000) for k in range(3)]
     assert log.at("info")[-1] == f"recording finished: 3 messages in {folder}"
+
+
+# --------------------------------------------------------------------------- folders in use
+
+
+def _bag_in(folder, log=None):
+    """A finished one-message bag in ``folder`` (what an earlier run leaves behind)."""
+    rec = Recorder(str(folder), [("/t/clock", "rosgraph_msgs/msg/Clock", None)], log or Log())
+    rec.open()
+    rec.write("/t/clock", bytes([0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]), 0)
+    rec.close()
+
+
+def test_reset_records_to_the_next_free_folder_when_the_next_name_is_taken(tmp_path):
+    """An earlier run that was reset once left ``<record_dir>_2``: the next run goes to
+    ``_3``, the reply says so, and everything after the reset is recorded."""
+    base = tmp_path / "run"
+    _bag_in(tmp_path / "run_2")
+    earlier = sorted(p.name for p in (tmp_path / "run_2").iterdir())
+    log = Log()
+    rec = Recorder(str(base), [("/t/clock", "rosgraph_msgs/msg/Clock", None)], log)
+    rec.open()
+    plant = make_plant(recorder=rec, log=log, lockstep=True)
+    plant.request(plant.runner.step())
+    ok, text = plant.request(plant.runner.reset())
+    assert ok and text.endswith(f"; recording to {tmp_path / 'run_3'}"), text
+    assert rec.active and rec.state == str(tmp_path / "run_3")
+    plant.request(plant.runner.step())
+    plant.request(plant.runner.step())
+    plant.runner.close()
+    assert not log.at("error")
+    # the earlier run's bag is untouched; the new run holds its reset state and both chunks
+    assert sorted(p.name for p in (tmp_path / "run_2").iterdir()) == earlier
+    assert bag_info(tmp_path / "run_2").message_count == 1
+    assert [t for _, _, t, _ in read_bag(tmp_path / "run_3")] == [0, 20_000_000, 40_000_000]
+    assert [t for _, _, t, _ in read_bag(base)] == [0, 20_000_000]
+
+
+def test_a_second_reset_skips_every_taken_name(tmp_path):
+    opened = []
+    rec = recorder(opened)
+    rec.base = str(tmp_path / "r")
+    for taken in ("r_2", "r_3", "r_5"):
+        (tmp_path / taken).mkdir()
+        (tmp_path / taken / "notes.txt").write_text("not ours")
+    (tmp_path / "r_4").mkdir()  # an empty folder is free
+    rec.open()
+    rec.reopen()
+    rec.reopen()
+    assert [w.folder for w in opened] == [str(tmp_path / n) for n in ("r", "r_4", "r_6")]
+
+
+@pytest.mark.parametrize("content", ["bag", "file"])
+def test_a_record_dir_that_holds_anything_is_refused_at_start_up(tmp_path, content):
+    folder = tmp_path / "run"
+    if content == "bag":
+        _bag_in(folder)
+    else:
+        folder.mkdir()
+        (folder / "notes.txt").write_text("mine")
+    before = sorted(p.name for p in folder.iterdir())
+    rec = Recorder(str(folder), TOPICS, Log())
+    with pytest.raises(StartupError) as err:
+        rec.open()
+    assert err.value.parameter == "record_dir"
+    assert str(err.value) == (f"parameter record_dir: {folder} exists and is not empty: give a "
+                              "new folder (a run is never recorded into another one's folder)")
+    assert sorted(p.name for p in folder.iterdir()) == before and not rec.active
+
+
+def test_a_reset_that_cannot_record_is_refused_and_the_run_goes_on_recording():
+    """Never a success while the recording has stopped: the reset either gets its new bag or
+    does not happen (the run and its bag go on)."""
+    opened = []
+    plant, rec = recording_plant(opened, lockstep=True)
+    plant.request(plant.runner.step())
+    rec._make_writer = functools.partial(FakeWriter, opened=opened, fail_at={"open"})
+    ok, text = plant.request(plant.runner.reset())
+    assert not ok
+    assert text == ("not reset: cannot record to runs/r_2: [Errno 13] Permission denied; the "
+                    "run goes on recording to runs/r")
+    assert plant.runner.sim_time_s == pytest.approx(0.02) and plant.runner.resets == 0
+    assert rec.state == "runs/r" and not opened[0].closed
+    assert plant.log.at("error") == [text]
+    plant.request(plant.runner.step())
+    assert [m[2] for m in opened[0].messages] == [0, 20_000_000, 40_000_000]
