@@ -16,28 +16,39 @@ Payloads are published as the recorded serialized bytes (``Publisher.publish(byt
 subscriber receives exactly what was recorded. Without ``loop`` the node exits once everything
 has been published and acknowledged by reliable subscribers (at most 5 s). The playback itself
 is :class:`~ltd_brake_ros.recording.player.Player`, which knows nothing of ROS.
+
+A recording that cannot be played (not a recording, a damaged ``metadata.yaml`` or chunk, files
+of several runs in one folder, a message type that is not installed) ends the node with one
+line naming the file, record or topic, and exit status 1; so do unknown parameters and stray
+arguments (:mod:`.program`).
 """
 from __future__ import annotations
 
-import sys
-import threading
-import time
-from pathlib import Path
+from .program import install_if_program, run, unknown_parameters
 
-import rclpy
-from rcl_interfaces.msg import SetParametersResult
-from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-from rclpy.node import Node
-from rclpy.utilities import remove_ros_args
-from rosgraph_msgs.msg import Clock
-from std_srvs.srv import SetBool, Trigger
+# before the imports below: a signal while they load ends the program cleanly
+_SIGNALS = install_if_program("replay_node")
 
-from ..recording.bag import bag_info, message_class
-from ..recording.player import Player
-from ..recording.qos import qos_from_profile
-from .messages import CLOCK_QOS, time_msg
-from .params import ParamSpec, StartupError, declare_parameters
+import sys  # noqa: E402
+import threading  # noqa: E402
+import time  # noqa: E402
+import warnings  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import rclpy  # noqa: E402
+from rcl_interfaces.msg import SetParametersResult  # noqa: E402
+from rclpy.duration import Duration  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from std_srvs.srv import SetBool, Trigger  # noqa: E402
+
+from ..plant.settings import MAX_REAL_TIME_FACTOR  # noqa: E402
+from ..recording.bag import bag_info, message_class  # noqa: E402
+from ..recording.player import Player  # noqa: E402
+from ..recording.qos import qos_from_profile  # noqa: E402
+from ..recording.reader import BagError, TruncatedBagWarning  # noqa: E402
+from .messages import CLOCK_QOS, time_msg  # noqa: E402
+from .params import ParamSpec, StartupError, declare_parameters  # noqa: E402
 
 __all__ = ["ReplayNode", "main"]
 
@@ -45,12 +56,14 @@ __all__ = ["ReplayNode", "main"]
 PARAMETERS = (
     ParamSpec("bag", "", "recording to play: bag folder or .mcap file"),
     ParamSpec("rate", 1.0, "recorded time x rate = wall time; 0 plays as fast as possible",
-              read_only=False),
+              read_only=False, lo=0.0, hi=MAX_REAL_TIME_FACTOR),
     ParamSpec("loop", False, "start again at the end", read_only=False),
     ParamSpec("publish_clock", False, "publish /clock from the recorded time"),
     ParamSpec("start_paused", False, "wait for ~/pause false before playing"),
-    ParamSpec("wait_for_subscribers", 0, "start once every topic has this many subscribers"),
+    ParamSpec("wait_for_subscribers", 0, "start once every topic has this many subscribers",
+              lo=0, hi=1000),
 )
+USAGE = "replay_node BAG [--ros-args -p rate:=2.0 -p loop:=true ...]"
 #: Longest wait for reliable subscribers to acknowledge the last messages [s].
 ACK_TIMEOUT_S = 5.0
 
@@ -67,21 +80,33 @@ class ReplayNode(Node):
 
     Raises
     ------
-    ValueError
-        No recording was given.
     StartupError
-        A parameter value has the wrong type.
+        No recording was given, a parameter value is unusable, or the node has no such
+        parameter.
+    BagError
+        The recording cannot be played (naming the file, record or topic).
     """
 
     def __init__(self, bag: str | None = None, **kwargs):
         super().__init__("replay_node", **kwargs)
+        self._thread: threading.Thread | None = None
+        try:
+            self._setup(bag)
+        except BaseException:  # a bad parameter or recording, or a signal during start-up
+            self.destroy_node()
+            raise
+
+    def _setup(self, bag: str | None) -> None:
         specs = [ParamSpec("bag", bag or "", PARAMETERS[0].description), *PARAMETERS[1:]]
         p = declare_parameters(self, specs)
+        unknown = unknown_parameters(self, [spec.name for spec in specs])
+        if unknown:
+            raise StartupError(*unknown)
         if not p["bag"]:
-            raise ValueError("no recording given: pass a bag folder or .mcap file as the "
-                             "first argument or set the 'bag' parameter")
+            raise StartupError("bag", "no recording given: pass a bag folder or .mcap file as "
+                                      "the first argument or set the 'bag' parameter")
         self.bag = Path(p["bag"])
-        info = bag_info(self.bag)
+        self.info = info = bag_info(self.bag)
         if not info.complete:
             self.get_logger().warning(f"{self.bag} was not finished by its recorder: "
                                       "playing up to its last complete chunk")
@@ -90,8 +115,12 @@ class ReplayNode(Node):
         for name, topic in info.topics.items():
             if clock and name == "/clock":
                 continue
+            try:
+                msg_class = message_class(topic.msg_type)
+            except (LookupError, ValueError) as exc:
+                raise BagError(self.bag, name, f"cannot be replayed: {exc}") from None
             qos = qos_from_profile(topic.qos_profiles[0] if topic.qos_profiles else None)
-            self._pubs[name] = self.create_publisher(message_class(topic.msg_type), name, qos)
+            self._pubs[name] = self.create_publisher(msg_class, name, qos)
         self._clock_pub = self.create_publisher(Clock, "/clock", CLOCK_QOS) if clock else None
         self.player = Player(self.bag, self._publish, rate=p["rate"], loop=p["loop"],
                              clock=self._publish_clock if clock else None,
@@ -102,11 +131,21 @@ class ReplayNode(Node):
         self.create_service(SetBool, "~/pause", self._on_pause)
         self.create_service(Trigger, "~/restart", self._on_restart)
         self.finished = False
-        self._thread = threading.Thread(target=self._play, name="replay", daemon=True)
-        self._thread.start()
+        #: 1 once playing failed (the recording turned out damaged further in).
+        self.exit_status = 0
+
+    def start(self) -> None:
+        """Start playing (on a thread of its own)."""
+        info = self.info
         self.get_logger().info(
             f"replaying {self.bag}: {info.message_count} messages on {len(self._pubs)} "
             f"topics, {(info.end_ns - info.start_ns) * 1e-9:.1f} s recorded")
+        self._thread = threading.Thread(target=self._play, name="replay", daemon=True)
+        self._thread.start()
+
+    def running(self) -> bool:
+        """False once everything was played (without ``loop``) or playing failed."""
+        return not self.finished
 
     def _publish(self, topic, msg_type, log_ns, data):
         pub = self._pubs.get(topic)
@@ -129,8 +168,11 @@ class ReplayNode(Node):
                 for p in self._pubs.values():
                     p.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
                 self.get_logger().info(f"replay finished: {n} messages published")
-        except Exception as exc:  # noqa: BLE001 - reported, then the node exits
-            self.get_logger().error(f"replay failed: {exc}")
+        except Exception as exc:  # noqa: BLE001 - one line, then the node exits with status 1
+            what = "" if isinstance(exc, BagError) else f"{type(exc).__name__}: "
+            self.get_logger().error(f"replay failed after {self.player.published} messages: "
+                                    f"{what}{exc}")
+            self.exit_status = 1
         finally:
             self.finished = True
 
@@ -160,33 +202,34 @@ class ReplayNode(Node):
     def stop(self):
         """Stop playing and wait for the playing thread (at most 5 s)."""
         self.player.stop()
-        self._thread.join(timeout=5.0)
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+
+    def close(self) -> None:
+        """Stop playing and destroy the node."""
+        self.stop()
+        self.destroy_node()
 
 
-def main(args=None):
-    """Entry point of ``replay_node`` (``ros2 run ltd_brake_ros replay_node``)."""
-    argv = list(sys.argv if args is None else args)
-    rclpy.init(args=argv)
-    rest = remove_ros_args(argv)[1:]
-    node = None
-    status = 0
-    try:
-        node = ReplayNode(rest[0] if rest else None)
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        while rclpy.ok() and not node.finished:
-            executor.spin_once(timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (ValueError, FileNotFoundError, StartupError) as exc:
-        print(f"replay_node: {exc}", file=sys.stderr)
-        status = 2
-    finally:
-        if node is not None:
-            node.stop()
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return status
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``replay_node`` (``ros2 run ltd_brake_ros replay_node``).
+
+    Parameters
+    ----------
+    args : list of str, optional
+        Command-line arguments (default: ``sys.argv``).
+
+    Returns
+    -------
+    int
+        0 once everything was played (or after a signal), 1 when the recording or a parameter
+        cannot be used (one line names the file, topic or parameter and the reason).
+    """
+    # the node says once, at start, that a recording was cut; not again after every pass
+    warnings.filterwarnings("ignore", category=TruncatedBagWarning)
+    return run("replay_node", args,
+               lambda positional: ReplayNode(positional[0] if positional else None),
+               usage=USAGE, signals=_SIGNALS, positional=("BAG",), errors=(StartupError,))
 
 
 if __name__ == "__main__":

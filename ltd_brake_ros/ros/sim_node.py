@@ -22,35 +22,41 @@ one behind it:
 
 Everything the node publishes or receives passes through :meth:`SimNode._emit` or
 :meth:`SimNode._input_handled` on the plant thread, where :meth:`SimNode.add_tap` observers see
-it in order.
+it in order. The program (:func:`main`, :mod:`.program`) refuses in one line a parameter the node
+does not have (a typo), an argument outside ``--ros-args`` and an unreadable parameter file;
+SIGINT or SIGTERM at any moment ends it cleanly, the recording finished.
 """
 from __future__ import annotations
 
-import signal
-import sys
-import time
-from typing import Any, Callable
+from .program import install_if_program, run, unknown_parameters
 
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-from rclpy.node import Node
-from rclpy.serialization import serialize_message
-from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Bool, Float64, Float64MultiArray
-from std_srvs.srv import SetBool, Trigger
+# before the imports below (a second or two): a signal while they load ends the program cleanly
+_SIGNALS = install_if_program("sim_node")
 
-from ..plant.diagnostics import PlantStatus
-from ..plant.recorder import Recorder
-from ..plant.runner import PlantRunner
-from ..recording.bag import type_name
-from ..recording.metadata import run_metadata
-from ..recording.qos import qos_profiles_yaml
-from ..simulator import Snapshot
-from .messages import (CLOCK_QOS, COMMAND_QOS, DIAGNOSTICS_QOS, STATE_QOS, array_msg,
-                       diagnostics_msg, time_msg)
-from .params import (StartupError, build_simulator, check_run_time_change, declare_parameters,
-                     load_plant_inputs, plant_settings)
+import sys  # noqa: E402
+import time  # noqa: E402
+from typing import Any, Callable  # noqa: E402
+
+import rclpy  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from rclpy.serialization import serialize_message  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from std_msgs.msg import Bool, Float64, Float64MultiArray  # noqa: E402
+from std_srvs.srv import SetBool, Trigger  # noqa: E402
+
+from ..plant.diagnostics import PlantStatus  # noqa: E402
+from ..plant.recorder import Recorder  # noqa: E402
+from ..plant.runner import PlantRunner  # noqa: E402
+from ..recording.bag import type_name  # noqa: E402
+from ..recording.metadata import run_metadata  # noqa: E402
+from ..recording.qos import qos_profiles_yaml  # noqa: E402
+from ..simulator import Snapshot  # noqa: E402
+from .messages import (CLOCK_QOS, COMMAND_QOS, DIAGNOSTICS_QOS, STATE_QOS,  # noqa: E402
+                       array_msg, diagnostics_msg, time_msg)
+from .params import (PARAMETERS, StartupError, build_simulator,  # noqa: E402
+                     check_run_time_change, declare_parameters, load_plant_inputs,
+                     plant_settings)
 
 NODE_NAME = "sim_node"
 #: Published arrays: topic, Snapshot attribute, ``layout.dim[0].label``.
@@ -89,15 +95,15 @@ class SimNode(Node):
         self.runner: PlantRunner | None = None
         try:
             self._setup()
-        except BaseException:
-            # e.g. SIGINT during start-up: a bag already opened is finished, not left cut
-            if self.runner is not None and self.runner.recorder is not None:
-                self.runner.recorder.close()
+        except BaseException:  # a bad parameter, or SIGINT/SIGTERM during start-up
             self.destroy_node()
             raise
 
     def _setup(self) -> None:
         p = declare_parameters(self)
+        unknown = unknown_parameters(self, [spec.name for spec in PARAMETERS])
+        if unknown:
+            raise StartupError(*unknown)
         self.inputs = spec = load_plant_inputs(
             p["consist"], p["initial_speed_kmh"], p["brake_params_file"], p["coupler_lut_file"],
             p["track_file"], p["start_chainage_m"])
@@ -123,6 +129,7 @@ class SimNode(Node):
                                       brake_params=str(spec.params.source),
                                       coupler_lut=str(spec.lut.source),
                                       track=str(spec.track.source)))
+            recorder.check()
         self.runner = PlantRunner(
             self.simulator, plant_settings(p), publish_state=self._publish_state,
             publish_status=self._publish_status, input_handled=self._input_handled,
@@ -135,8 +142,6 @@ class SimNode(Node):
         self.add_on_set_parameters_callback(
             lambda params: check_run_time_change(params, self.runner.real_time_factor))
         self.add_post_set_parameters_callback(self._apply_parameters)
-        if recorder is not None:
-            recorder.open()
         c, s = spec.consist, self.runner.settings
         mode = "lock-step" if s.lockstep else f"real_time_factor {s.real_time_factor:g}"
         self.get_logger().info(
@@ -175,13 +180,34 @@ class SimNode(Node):
         self._taps.append(tap)
 
     def start(self) -> None:
-        """Start the plant thread (publishes the initial state, then runs)."""
+        """Open the recording (if any) and start the plant thread (initial state, then runs).
+
+        Raises
+        ------
+        StartupError
+            The recording cannot be opened (parameter ``record_dir``).
+        """
+        if self.runner.recorder is not None:
+            self.runner.recorder.open()
         self.runner.start()
+
+    def running(self) -> bool:
+        """False once a run-policy limit ended the run or the plant thread died."""
+        return not self.runner.finished.is_set()
+
+    @property
+    def exit_status(self) -> int:
+        """0, or 1 once the plant thread died of an unexpected error."""
+        return self.runner.exit_status
 
     def close(self) -> None:
         """Stop the plant thread, finish the recording and destroy the node."""
-        self.runner.close()
+        runner = self.runner
+        runner.close()
         self.destroy_node()
+        if runner.stats.chunks or runner.stamp_ns:
+            rclpy.logging.get_logger(NODE_NAME).info(
+                f"stopped at t = {runner.sim_time_s:.3f} s after {runner.stats.chunks} chunks")
 
     # ------------------------------------------------------------------ the one way out and in
 
@@ -230,54 +256,13 @@ def main(args: list[str] | None = None) -> int:
     Returns
     -------
     int
-        Exit status: 0 after a clean shutdown, 1 when a parameter value is unusable or the
-        plant thread died of an unexpected error.
+        Exit status: 0 after a clean shutdown (a signal included), 1 when the node cannot start
+        (one line names the parameter or argument) or the plant thread died of an unexpected
+        error.
     """
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = SimNode()
-        node.start()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        while rclpy.ok() and not node.runner.finished.is_set():
-            executor.spin_once(timeout_sec=0.2)
-        return node.runner.exit_status
-    except StartupError as exc:
-        rclpy.logging.get_logger(NODE_NAME).fatal(f"cannot start: {exc}")
-        return 1
-    except (KeyboardInterrupt, ExternalShutdownException):
-        return 0
-    finally:
-        _finish_despite_signals()
-        if node is not None:
-            node.close()
-            runner = node.runner
-            rclpy.logging.get_logger(NODE_NAME).info(
-                f"stopped at t = {runner.sim_time_s:.3f} s after {runner.stats.chunks} chunks")
-        rclpy.try_shutdown()
-        _finish_despite_signals()  # shutting rclpy down may have put its handlers back
-
-
-def _finish_despite_signals() -> None:
-    """Let a further SIGINT or SIGTERM only log, so that it cannot cut the recording short.
-
-    Without this, a second Ctrl-C (or a SIGINT after a SIGTERM) that arrives while the bag is
-    being closed raises KeyboardInterrupt inside the closing and leaves the file without its
-    summary. SIGKILL still ends the process at once.
-    """
-    def note(signum, _frame):
-        text = (f"{signal.Signals(signum).name} ignored: finishing the recording and shutting "
-                "down (SIGKILL aborts)")
-        try:
-            rclpy.logging.get_logger(NODE_NAME).warning(text)
-        except Exception:  # noqa: BLE001 - logging already shut down: never fail here
-            print(f"[WARN] [{NODE_NAME}]: {text}", file=sys.stderr)
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        try:
-            signal.signal(sig, note)
-        except ValueError:  # not the main thread (node embedded elsewhere): nothing to guard
-            pass
+    return run(NODE_NAME, args, lambda _positional: SimNode(),
+               usage="sim_node [--ros-args -p name:=value ... --params-file file.yaml]",
+               signals=_SIGNALS, errors=(StartupError,))
 
 
 if __name__ == "__main__":

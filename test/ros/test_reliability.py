@@ -21,24 +21,23 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
+# a broken ROS installation fails these tests; it never skips them
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from rosbags.rosbag2 import Reader as RosbagsReader
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
 
 from conftest import executable
+from ltd_brake_ros.recording.bag import (BagWriter, TruncatedBagWarning, bag_info, read_bag,
+                                         recover)
 from node_helpers import (ARRAY_TOPICS, SIGNALS, diagnostics_of, level_int, limited_argv,
                           node_argv, read_mcap, rss_kb, signal_group, wait_for_output)
 
 pytestmark = pytest.mark.ros
-
-rclpy = pytest.importorskip("rclpy")
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
-from rclpy.serialization import deserialize_message  # noqa: E402
-from rosbags.rosbag2 import Reader as RosbagsReader  # noqa: E402
-from rosgraph_msgs.msg import Clock  # noqa: E402
-from std_msgs.msg import Float64  # noqa: E402
-from std_srvs.srv import Trigger  # noqa: E402
-
-from ltd_brake_ros.recording.bag import TruncatedBagWarning, bag_info, read_bag, recover  # noqa: E402
 
 #: Trials run at the same time (each node is mostly one busy thread; two cores).
 PARALLEL = 3
@@ -547,12 +546,16 @@ def test_simulator_failure_finishes_the_recording_and_reset_starts_a_new_one(
         assert info.end_ns == round(failed_at * 1e9)
 
         monkeypatch.undo()
+        # an earlier run that was reset once left failing_2: the next run takes failing_3
+        taken = tmp_path / "failing_2"
+        BagWriter(taken).close()
         reply = probe.call(Trigger, f"{name}/reset", Trigger.Request())
-        assert reply.success, reply.message
+        second = tmp_path / "failing_3"
+        assert reply.success and reply.message.endswith(f"recording to {second}"), reply.message
         probe.spin_until(lambda: node.runner.sim_time_s > 1.0, 30, "the plant after ~/reset")
         assert node.runner.failure is None
-        second = tmp_path / "failing_2"
-        assert (second / "failing_2_0.mcap").is_file(), "~/reset did not start a new bag"
+        assert (second / "failing_3_0.mcap").is_file(), "~/reset did not start a new bag"
+        assert bag_info(taken).message_count == 0  # the earlier run's bag is untouched
     finally:
         probe.executor.remove_node(node)
         node.close()

@@ -1,8 +1,10 @@
 """Replay: pacing logic without ROS, and a real replay_node heard by a raw subscriber."""
 from __future__ import annotations
 
+import shutil
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -158,3 +160,86 @@ def test_subscriber_receives_byte_identical_payloads_in_order(bag, processes, pr
     # DDS orders samples per topic (one writer each), not across topics
     assert dict(probe.received) == expected
     assert node.wait(30) == 0  # without loop it ends by itself once everything is delivered
+
+
+def _raw_bag(path, schema_name: str) -> None:
+    """A one-topic MCAP whose message type is ``schema_name`` (BagWriter only takes installed
+    types)."""
+    from mcap.writer import Writer
+
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start(profile="ros2", library="test")
+        sid = w.register_schema(name=schema_name, encoding="ros2msg", data=b"float64 data")
+        cid = w.register_channel(topic="/odd/x", message_encoding="cdr", schema_id=sid)
+        for i in range(3):
+            w.add_message(channel_id=cid, log_time=i * 1000, publish_time=i * 1000,
+                          data=b"\0\1\0\0" + bytes(8), sequence=i)
+        w.finish()
+
+
+def _hostile_recordings(bag, tmp: Path) -> dict[str, tuple[list[str], str]]:
+    """Recordings (and command lines) replay_node must refuse: name -> (arguments, text the
+    one line must hold)."""
+    cases = {}
+    for name, text, expect in (("not_yaml", "{[: :", "metadata.yaml"),
+                               ("a_list", "- 1\n- 2\n", "rosbag2_bagfile_information"),
+                               ("wrong_files", "rosbag2_bagfile_information:\n"
+                                "  relative_file_paths: [elsewhere.mcap]\n", "elsewhere.mcap")):
+        folder = tmp / name
+        shutil.copytree(bag, folder)
+        (folder / "metadata.yaml").write_text(text)
+        cases[f"metadata.yaml {name}"] = ([str(folder)], expect)
+    # two runs' files in one folder, no metadata.yaml: never played as one
+    mixed = tmp / "mixed"
+    mixed.mkdir()
+    for k in (1, 2):
+        with BagWriter(tmp / f"run{k}", metadata={"run": k}) as w:
+            w.add_topic(CMD, "std_msgs/msg/Bool")
+            w.write(CMD, serialize_message(Bool(data=True)), k * 1_000_000_000)
+        shutil.copy(tmp / f"run{k}" / f"run{k}_0.mcap", mixed / f"part{k}.mcap")
+    cases["two runs"] = ([str(mixed)], "part1.mcap and part2.mcap")
+    for name, schema in (("uninstalled", "foo_msgs/msg/Bar"), ("malformed", "notatype")):
+        _raw_bag(tmp / f"{name}.mcap", schema)
+        cases[f"{name} type"] = ([str(tmp / f"{name}.mcap")], f"/odd/x: cannot be replayed")
+    cases["misspelt parameter"] = ([str(bag), "--ros-args", "-p", "rat:=2.0"],
+                                   "parameter rat: replay_node has no such parameter "
+                                   "(did you mean rate?)")
+    cases["negative rate"] = ([str(bag), "--ros-args", "-p", "rate:=-1.0"], "parameter rate")
+    cases["stray argument"] = ([str(bag), "extra"], "unexpected argument 'extra'")
+    cases["no recording"] = ([], "parameter bag: no recording given")
+    cases["missing params file"] = ([str(bag), "--ros-args", "--params-file", "/nonexistent.yaml"],
+                                    "--params-file /nonexistent.yaml: no such file")
+    return cases
+
+
+@pytest.mark.ros
+def test_a_recording_or_command_line_that_cannot_be_played_is_one_line(bag, processes,
+                                                                       tmp_path):
+    cases = _hostile_recordings(bag, tmp_path)
+    # a chunk damaged further in: found while playing, after the messages before it
+    damaged = tmp_path / "damaged"
+    with BagWriter(damaged, chunk_size=600, compression="none") as w:
+        w.add_topic(SPEED, "std_msgs/msg/Float64MultiArray")
+        for i in range(60):
+            w.write(SPEED, serialize_message(array_msg("vehicle", np.full(3, 1.0 * i))),
+                    i * 20_000_000)
+    file = damaged / "damaged_0.mcap"
+    data = bytearray(file.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    file.write_bytes(bytes(data))
+    cases["damaged chunk"] = ([str(damaged), "--ros-args", "-p", "rate:=0.0"],
+                              f"replay failed after ")
+    procs = {name: processes.start(executable("replay_node"), *args,
+                                   name=name.replace(" ", "_").replace(".", "_"))
+             for name, (args, _) in cases.items()}
+    for name, proc in procs.items():
+        status = proc.wait(60)
+        out = proc.output().strip()
+        lines = out.splitlines()
+        assert status == 1, f"{name}: exit status {status}\n{out}"
+        assert lines and all(line.startswith("[") for line in lines), f"{name}:\n{out}"
+        assert cases[name][1] in lines[-1], f"{name}:\n{out}"
+        if name != "damaged chunk":
+            assert len(lines) == 1 and "cannot start: " in out, f"{name}:\n{out}"
+    assert str(file) in procs["damaged chunk"].output()
