@@ -99,8 +99,9 @@ def main() -> None:
     print(f"parallel efficiency of the pool: {100 * serial / (w * pool):.0f} % "
           f"(serial {serial / n * 1e3:.1f} ms/run wall, {cpu / n * 1e3:.1f} ms/run CPU: a busy "
           f"machine shows as wall above CPU)")
-    print(f"Dask against the pool: {100 * (dask / pool - 1):+.0f} % wall time, of which "
-          f"{dask_start:.1f} s starting the cluster")
+    print(f"Dask against the pool: {100 * (dask / pool - 1):+.0f} % wall time "
+          f"({100 * ((dask - dask_start) / pool - 1):+.0f} % without the "
+          f"{dask_start:.1f} s of starting the cluster)")
     print(f"tables identical (serial, pool, Dask): {identical}; failed runs: {failed}")
     print(f"driver resident memory: {rss0:.0f} MiB before the pool, at most {peak[0]:.0f} MiB "
           f"while it ran")
