@@ -13,29 +13,27 @@ import time
 
 import pytest
 import yaml
+# a broken ROS installation fails these tests; it never skips them
+from diagnostic_msgs.msg import DiagnosticArray
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rclpy.duration import Duration
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from rosbags.rosbag2 import Reader as RosbagsReader
+from rosbags.typesys import Stores, get_typestore
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Bool, Float64, Float64MultiArray
+from std_srvs.srv import SetBool, Trigger
 
+from ltd_brake_ros.analysis.report import analyse, write_plots
+from ltd_brake_ros.inputs import get_scenario
+from ltd_brake_ros.recording.bag import bag_info
+from ltd_brake_ros.studies.runs import emergency_stop
 from node_helpers import (ARRAY_TOPICS, PNG, chunks_from_log, diagnostics_of, node_argv,
                           plain, read_mcap)
 
 pytestmark = pytest.mark.ros
-
-rclpy = pytest.importorskip("rclpy")
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from mcap.reader import make_reader  # noqa: E402
-from mcap_ros2.decoder import DecoderFactory  # noqa: E402
-from rclpy.duration import Duration  # noqa: E402
-from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
-from rclpy.serialization import deserialize_message  # noqa: E402
-from rosbags.rosbag2 import Reader as RosbagsReader  # noqa: E402
-from rosbags.typesys import Stores, get_typestore  # noqa: E402
-from rosgraph_msgs.msg import Clock  # noqa: E402
-from std_msgs.msg import Bool, Float64, Float64MultiArray  # noqa: E402
-from std_srvs.srv import SetBool, Trigger  # noqa: E402
-
-from ltd_brake_ros.recording.bag import bag_info  # noqa: E402
-from ltd_brake_ros.inputs import get_scenario  # noqa: E402
-from ltd_brake_ros.analysis.report import analyse, write_plots  # noqa: E402
-from ltd_brake_ros.studies.runs import emergency_stop  # noqa: E402
 
 TYPES = {**{t: "std_msgs/msg/Float64MultiArray" for t in ARRAY_TOPICS},
          "clock": "rosgraph_msgs/msg/Clock", "brake_command": "std_msgs/msg/Bool",
@@ -49,16 +47,16 @@ def _start(processes, ns, folder, *params, name=None):
                            name=name or ns.strip("/"))
 
 
-def _wait_until_heard(probe, ns, node, proc):
-    """Wait until the probe hears the node (diagnostics arrive) and the node hears the probe."""
+def _wait_until_heard(probe, ns, node, proc, state: bool = True):
+    """Wait until the probe hears the node (diagnostics arrive), so the node has discovered
+    every endpoint the probe created before it started, and (``state``) the probe's readers
+    of the node's state are matched."""
     diag = probe.received["/diagnostics"]
     probe.spin_until(lambda: diagnostics_of(
         [deserialize_message(d, DiagnosticArray) for d in diag[-3:]], node),
         60, f"diagnostics of {node}:\n{proc.output()}")
-    for topic in ("clock", *ARRAY_TOPICS):
-        probe.spin_until(lambda t=topic: probe.node.count_publishers(f"{ns}/{t}") > 0, 20,
-                         f"the publisher of {ns}/{topic}")
-    probe.spin_for(0.3)  # discovered is not yet matched: give the match a moment
+    if state:
+        probe.wait_matched([f"{ns}/{t}" for t in ("clock", *ARRAY_TOPICS)])
 
 
 def _missed(got: list, recorded: list) -> int:
@@ -101,6 +99,7 @@ def test_recorded_run_round_trips_through_independent_readers_and_reports_like_o
     for topic in (*ARRAY_TOPICS, "clock"):
         probe.subscribe(f"{ns}/{topic}", Float64MultiArray if topic != "clock" else Clock,
                         raw=True, depth=DEEP)
+    probe.prepare(node, "set_parameters")
     probe.subscribe("/diagnostics", DiagnosticArray, raw=True, depth=DEEP)
     # the first chunk is due 20 s after start-up: time to match every reader before the run
     proc = _start(processes, ns, folder, "real_time_factor:=0.001", "auto_brake_at_s:=0.0",
@@ -248,14 +247,17 @@ def test_long_free_running_record_loses_nothing(processes, probe, tmp_path):
     ns, node = "/long", "/long/sim_node"
     folder = tmp_path / "long"
     sim_s = 240.0
-    probe.subscribe("/diagnostics", DiagnosticArray, raw=True, depth=DEEP)
-    proc = _start(processes, ns, folder, "real_time_factor:=0.001")
-    _wait_until_heard(probe, ns, node, proc)
     values = [round(0.001 * i, 3) for i in range(1, 201)]
+    # the probe's endpoints exist before the node starts: the node discovers them together,
+    # and its diagnostics reaching the probe show it has
     commands = probe.node.create_publisher(
         Float64, f"{ns}/brake_demand",
         QoSProfile(depth=len(values), reliability=ReliabilityPolicy.RELIABLE))
-    probe.spin_until(lambda: commands.get_subscription_count() > 0, 20,
+    probe.prepare(node, "set_parameters", "pause")
+    probe.subscribe("/diagnostics", DiagnosticArray, raw=True, depth=DEEP)
+    proc = _start(processes, ns, folder, "real_time_factor:=0.001")
+    _wait_until_heard(probe, ns, node, proc, state=False)
+    probe.spin_until(lambda: commands.get_subscription_count() > 0, 60,
                      f"the node's subscription to {ns}/brake_demand")
     (switched,) = probe.set_parameters(node, real_time_factor=0.0)
     assert switched.successful, switched.reason
@@ -310,7 +312,10 @@ def test_idle_plant_still_flushes_its_chunks_within_a_second(processes, probe, t
     file anyway, within the flush interval (1 s) plus a margin, without closing the bag."""
     ns, node = "/idle", "/idle/sim_node"
     folder = tmp_path / "idle"
+    probe.prepare(node, "step")
+    probe.subscribe("/diagnostics", DiagnosticArray, raw=True, depth=DEEP)
     proc = _start(processes, ns, folder, "lockstep:=true", "steps_per_call:=5")
+    _wait_until_heard(probe, ns, node, proc, state=False)
     file = folder / "idle_0.mcap"
     delays = []
     for call in (1, 2):

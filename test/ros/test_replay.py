@@ -150,9 +150,12 @@ def test_subscriber_receives_byte_identical_payloads_in_order(bag, processes, pr
         expected[topic].append(data)
     probe.subscribe(SPEED, Float64MultiArray, raw=True)
     probe.subscribe(CMD, Bool, raw=True)
+    probe.prepare("/replay_node", "pause")
     node = processes.start(executable("replay_node"), str(bag), "--ros-args",
                            "-p", "rate:=2.0", "-p", "start_paused:=true",
                            "-p", "wait_for_subscribers:=1", name="replay_node")
+    # it plays nothing before every topic has a subscriber: the probe's readers are matched
+    probe.wait_matched([SPEED, CMD])
     response = probe.call(SetBool, "/replay_node/pause", SetBool.Request(data=False))
     assert response.success and response.message == "playing"
     probe.spin_until(lambda: sum(map(len, probe.received.values())) >= 45, 60,

@@ -77,16 +77,18 @@ def test_live_plant_stops_like_the_offline_simulator(processes, probe):
     scenario = get_scenario(6)
     consist = scenario.consist()
     n = consist.n
-    spawned = time.monotonic()
-    proc = start_node(processes, ns, "real_time_factor:=1.0")
     # at real_time_factor 0 the probe cannot take every message: a short reader queue keeps
     # what it reads close to the newest state
     for topic in ARRAYS:
         probe.subscribe(f"{ns}/{topic}", Float64MultiArray, depth=10)
     probe.subscribe(f"{ns}/clock", Clock, depth=10)
+    probe.prepare(node, "pause", "reset", "step", "set_parameters", "get_parameters")
     probe.subscribe("/diagnostics", DiagnosticArray)
+    spawned = time.monotonic()
+    proc = start_node(processes, ns, "real_time_factor:=1.0")
     got = probe.received
     clocks, positions = got[f"{ns}/clock"], got[f"{ns}/vehicles/position"]
+    probe.spin_until(lambda: diagnostics(probe, node), 60, f"diagnostics of {node}")
     probe.spin_until(lambda: clocks, 60, f"{ns}/clock from the running node")
     probe.spin_for(0.5)
     # paced at real_time_factor 1: simulated time never runs ahead of the wall clock
@@ -194,8 +196,7 @@ def test_lockstep_runs_are_bit_identical_and_reset_restores_the_start(processes,
         probe.subscribe(topic, Float64MultiArray, raw=True)
     for ns in runs_ns:
         probe.subscribe(f"{ns}/clock", Clock)
-        for service in ("reset", "step"):
-            probe.client(Trigger, f"{ns}/sim_node/{service}")
+        probe.prepare(f"{ns}/sim_node", "reset", "step")
     probe.subscribe("/diagnostics", DiagnosticArray)
     procs = [start_node(processes, ns, *params) for ns in runs_ns]
     got = probe.received
