@@ -191,7 +191,9 @@ class SpeedController(Node):
                                                    self._on_speed, RELIABLE)
         self._step_client = self.create_client(Trigger, f"{self._plant}/step")
         self._param_client = self.create_client(GetParameters, f"{self._plant}/get_parameters")
-        self._speed_count = 0           # vehicles/speed messages received
+        self._speeds: dict[int, float] = {}  # head speed [m/s] by the state's number
+        self._arrivals = 0                   # vehicles/speed messages received
+        self._next_state = 2                 # number of the first state after a step
         self._head_speed_m_s = math.nan
         self._spinner = SingleThreadedExecutor(context=self.context)
         self._spinner.add_node(self)
@@ -206,9 +208,12 @@ class SpeedController(Node):
             values[name] = self.declare_parameter(name, default, descriptor).value
         return values
 
-    def _on_speed(self, msg: Float64MultiArray) -> None:
-        self._head_speed_m_s = msg.data[0]
-        self._speed_count += 1
+    def _on_speed(self, msg: Float64MultiArray, info) -> None:
+        # the plant's writer numbers its states: 1 is the initial state, then one per chunk;
+        # a state is known by its number however late it arrives (a middleware that does not
+        # number them gets the order of arrival)
+        self._arrivals += 1
+        self._speeds[info.get("publication_sequence_number") or self._arrivals] = msg.data[0]
 
     # ------------------------------------------------------------------ talking to the plant
 
@@ -242,22 +247,30 @@ class SpeedController(Node):
                          and self._brake_pub.get_subscription_count() > 0
                          and self._speed_sub.get_publisher_count() > 0,
                          "match with the plant's topics", self.connect_timeout_s)
-        # the plant publishes its initial state once at start-up; whether it reaches us depends
-        # on discovery timing, so let it arrive now rather than mistake it for a step's state
-        end = time.monotonic() + 0.3
-        while time.monotonic() < end:
-            self._spinner.spin_once(timeout_sec=0.05)
         return float(chunk_s)
 
     def _step(self) -> None:
-        """Advance the plant one chunk and wait for the state it published."""
-        expected = self._speed_count + 1
-        reply = self._call(self._step_client, Trigger.Request(), f"{self._plant}/step")
-        if not reply.success:
-            raise RuntimeError(f"{self._plant}/step refused: {reply.message}")
-        # the plant publishes the state before it answers, but the message travels on another
-        # channel than the answer: wait for it (one vehicles/speed message per chunk)
-        self._spin_until(lambda: self._speed_count >= expected, "vehicles/speed after a step")
+        """Advance the plant one chunk and take the state it published.
+
+        The state is the acknowledgement: the plant publishes it before it answers, on another
+        channel, and it is the one numbered at least one above the previous step's (the
+        plant's initial state, 1, may arrive late: it is never taken for a step's). A refusal
+        comes as the answer; an answer lost on the way does not matter once the state is in.
+        """
+        future = self._step_client.call_async(Trigger.Request())
+
+        def newest() -> int:
+            return max(self._speeds, default=0)
+
+        self._spin_until(lambda: newest() >= self._next_state
+                         or (future.done() and not future.result().success),
+                         f"the state after {self._plant}/step")
+        if newest() < self._next_state:
+            raise RuntimeError(f"{self._plant}/step refused: {future.result().message}")
+        number = newest()
+        self._head_speed_m_s = self._speeds[number]
+        self._speeds.clear()
+        self._next_state = number + 1
 
     def _send(self, traction: float, brake_demand: float) -> None:
         """Publish the commands so that the plant applies them in the next step."""
