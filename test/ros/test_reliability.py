@@ -280,6 +280,7 @@ def test_full_disk_stops_the_recording_not_the_plant(processes, probe, tmp_path)
     folder = tmp_path / "full"
     limit = 200_000
     probe.subscribe(f"{ns}/clock", Clock, depth=100)
+    probe.prepare(node, "reset")
     probe.subscribe("/diagnostics", DiagnosticArray)
     argv = node_argv(ns, "record:=true", f"record_dir:={folder}", "real_time_factor:=2.0")
     env = dict(os.environ, ROS_LOG_DIR=str(tmp_path / "roslog"))
@@ -340,6 +341,7 @@ def test_hostile_values_and_parameters_are_rejected_while_the_plant_keeps_time(
     ns, node = "/hostile", "/hostile/sim_node"
     folder = tmp_path / "hostile"
     probe.subscribe(f"{ns}/clock", Clock, depth=1000)
+    probe.prepare(node, "set_parameters", "get_parameters")
     probe.subscribe("/diagnostics", DiagnosticArray)
     proc = processes.start(*node_argv(ns, "record:=true", f"record_dir:={folder}",
                                       "real_time_factor:=1.0"), name="hostile")
@@ -411,11 +413,15 @@ def test_hostile_values_and_parameters_are_rejected_while_the_plant_keeps_time(
 
 
 FLOOD = textwrap.dedent("""\
-    import sys, time
+    import os, sys, time
     import rclpy
+    from rclpy.duration import Duration
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from std_msgs.msg import Bool
     topic, rate, seconds = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
+    # the flood is hostile input, not a rival for the CPU: at the node's priority a flooder on a
+    # shared two-core machine measures the machine instead of the node
+    os.nice(19)
     rclpy.init()
     node = rclpy.create_node("flood")
     # what a controller would use: reliable, keep the last 10
@@ -431,12 +437,15 @@ FLOOD = textwrap.dedent("""\
         elapsed = time.monotonic() - start
         if elapsed >= seconds:
             break
-        for _ in range(min(int(elapsed * rate) + 1 - sent, 1000)):
+        due = min(int(elapsed * rate) + 1 - sent, 1000)
+        for _ in range(due):
             pub.publish(msg)
             sent += 1
+        if due <= 0:
+            time.sleep(0.0005)  # on schedule: no busy wait
     elapsed = time.monotonic() - start
     print(f"sent {sent} in {elapsed:.3f} s", flush=True)
-    time.sleep(1.0)  # reliable delivery of the last ones
+    pub.wait_for_all_acked(Duration(seconds=5.0))  # reliable delivery of the last ones
     node.destroy_node()
     rclpy.shutdown()
 """)
@@ -454,9 +463,13 @@ def test_command_flood_keeps_the_pace_and_every_handled_command_is_recorded(
     proc = processes.start(*node_argv(ns, "record:=true", f"record_dir:={folder}",
                                       "real_time_factor:=1.0"), name="flood")
     _wait_diag(probe, node, bool, 60, f"diagnostics of {node}:\n{proc.output()}")
+    # (arrival [s, monotonic], stamp [ns], publication [ns, the node's wall clock]): the pace
+    # is the node's, from its own publication times, not the probe's arrival times (the probe
+    # shares the machine with the flood and may take a message late)
     clocks = []
     probe.node.create_subscription(
-        Clock, f"{ns}/clock", lambda m: clocks.append((time.monotonic(), _clock_ns(m))),
+        Clock, f"{ns}/clock", lambda m, info: clocks.append(
+            (time.monotonic(), _clock_ns(m), info["source_timestamp"])),
         QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
     flood = processes.start(sys.executable, "-c", FLOOD, f"{ns}/brake_command",
                             str(FLOOD_RATE), str(FLOOD_S), name="flooder")
@@ -470,9 +483,9 @@ def test_command_flood_keeps_the_pace_and_every_handled_command_is_recorded(
     sent, rate = int(sent), int(sent) / float(took)
 
     # the pace: simulated time over wall time while the flood ran, from the probe's clock
-    window = [(t, s) for t, s in clocks if started + 1.0 <= t <= ended - 0.5]
+    window = [(sent_ns, s) for t, s, sent_ns in clocks if started + 1.0 <= t <= ended - 0.5]
     assert len(window) > 50
-    pace = (window[-1][1] - window[0][1]) / 1e9 / (window[-1][0] - window[0][0])
+    pace = (window[-1][1] - window[0][1]) / (window[-1][0] - window[0][0])
     during = diagnostics_of(probe.received["/diagnostics"][first_diag:], node)
     achieved = [float(d["achieved_real_time_factor"]) for d in during[1:]]
 
@@ -493,7 +506,7 @@ def test_command_flood_keeps_the_pace_and_every_handled_command_is_recorded(
           f"{min(achieved):.3f}..{max(achieved):.3f}; overruns "
           f"{during[-1]['chunk_overruns'] if during else '?'}")
     assert in_bag == last, "the recorder lost a command the node handled"
-    assert 0 < last <= sent
+    assert 0 < last < sent, "not a flood: the node took every command"
     # the pace held over the whole flood and in the typical second (without the callbacks
     # stepping aside it fell to 0.82-0.93 here; a shared 2-core machine adds a few % of noise)
     assert pace == pytest.approx(1.0, rel=0.07)
