@@ -17,7 +17,8 @@ import pyarrow.compute as pc
 from ..inputs import InputError
 from ..studies.campaign_exec import read_results
 
-__all__ = ["KPIS", "bootstrap_quantile", "campaign_report", "format_report", "parse_thresholds"]
+__all__ = ["KPIS", "bootstrap_quantile", "campaign_report", "format_report", "parse_thresholds",
+           "worst_runs"]
 
 #: KPIs summarised: column -> (label, unit); larger is worse for each.
 KPIS = {
@@ -55,6 +56,56 @@ def parse_thresholds(items: list[str]) -> dict[str, float]:
     return out
 
 
+def _kpi_values(table, name: str) -> np.ndarray:
+    """Column of KPI ``name`` (larger is worse: the buff force as a magnitude) as floats."""
+    col = "peak_buff_kN" if name == "abs_peak_buff_kN" else name
+    x = np.array(table[col].to_numpy(zero_copy_only=False), float)
+    return np.abs(x) if name == "abs_peak_buff_kN" else x
+
+
+def worst_runs(table, kpi: str, n: int, manoeuvre: str | None = None) -> list[dict]:
+    """The ``n`` worst successful runs by a KPI, per manoeuvre, worst first.
+
+    Parameters
+    ----------
+    table : pyarrow.Table
+        Rows of a results folder (:func:`~..studies.campaign_exec.read_results`).
+    kpi : str
+        A key of :data:`KPIS`.
+    n : int
+        Runs per manoeuvre.
+    manoeuvre : str, optional
+        Only this manoeuvre's rows.
+
+    Returns
+    -------
+    list of dict
+        ``run_id``, ``manoeuvre`` and ``value`` (the KPI), by manoeuvre then worst first; a
+        run without a value (no stop) is never among them.
+
+    Raises
+    ------
+    InputError
+        Unknown KPI or manoeuvre (naming ``--kpi`` or ``--manoeuvre``).
+    """
+    if kpi not in KPIS:
+        raise InputError("--kpi", "", f"unknown KPI {kpi!r}; known: {', '.join(KPIS)}")
+    names = list(dict.fromkeys(table["manoeuvre"].to_pylist()))
+    if manoeuvre is not None and manoeuvre not in names:
+        raise InputError("--manoeuvre", "", f"no manoeuvre {manoeuvre!r} in the results; they "
+                         f"hold {', '.join(names)}")
+    ids = np.array(table["run_id"].to_pylist())
+    man = np.array(table["manoeuvre"].to_pylist(), dtype=object)
+    x = _kpi_values(table, kpi)
+    usable = (np.array(table["status"].to_pylist()) == "ok") & np.isfinite(x)
+    out = []
+    for name in ([manoeuvre] if manoeuvre is not None else names):
+        rows = np.flatnonzero(usable & (man == name))
+        rows = rows[np.argsort(-x[rows], kind="stable")][:n]
+        out += [{"run_id": int(ids[i]), "manoeuvre": name, "value": float(x[i])} for i in rows]
+    return out
+
+
 def bootstrap_quantile(x: np.ndarray, q: float, confidence: float, rng: np.random.Generator,
                        resamples: int = RESAMPLES) -> tuple[float, float, float, np.ndarray]:
     """Quantile ``q`` of ``x`` with a percentile-bootstrap confidence interval.
@@ -83,11 +134,7 @@ def bootstrap_quantile(x: np.ndarray, q: float, confidence: float, rng: np.rando
 
 def _kpis(table) -> dict[str, np.ndarray]:
     ok = np.array(table["status"].to_pylist()) == "ok"
-    out = {}
-    for name in KPIS:
-        col = "peak_buff_kN" if name == "abs_peak_buff_kN" else name
-        x = np.array(table[col].to_numpy(zero_copy_only=False), float)[ok]
-        out[name] = np.abs(x) if name == "abs_peak_buff_kN" else x
+    out = {name: _kpi_values(table, name)[ok] for name in KPIS}
     return {k: v[np.isfinite(v)] for k, v in out.items()}
 
 

@@ -43,6 +43,25 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     q.add_argument("--plots", metavar="DIR", help="write CDF and histogram PNGs here")
     q.add_argument("--json", action="store_true", help="print JSON instead of text")
     q.set_defaults(func=report)
+    w = sub.add_parser(
+        "rerun", help="re-run chosen runs with full MCAP recordings",
+        description="Rebuild runs of a results folder from its campaign (the same draws), run "
+                    "them again offline and record each into a rosbag2/MCAP folder of its own, "
+                    "as sim_node records a run: ltd-brake report and Foxglove open them.")
+    w.add_argument("dir", metavar="DIR", help="results folder")
+    which = w.add_mutually_exclusive_group(required=True)
+    which.add_argument("--runs", metavar="IDS", help="run ids, comma-separated, e.g. 17,42")
+    which.add_argument("--worst", type=int, metavar="N",
+                       help="the N worst successful runs of each manoeuvre by --kpi")
+    w.add_argument("--kpi", default="abs_peak_buff_kN", metavar="KPI",
+                   help="KPI ranking --worst (default abs_peak_buff_kN; also peak_draft_kN, "
+                        "max_adhesion_demand, stopping_distance_m)")
+    w.add_argument("--manoeuvre", metavar="NAME", help="only this manoeuvre (default: each)")
+    w.add_argument("--out", required=True, metavar="FOLDER",
+                   help="recordings go to FOLDER/run_<id>_<manoeuvre>/")
+    w.add_argument("--namespace", default="/", metavar="NS",
+                   help="namespace of the plant topics (default /, as sim_node without one)")
+    w.set_defaults(func=rerun)
     return p
 
 
@@ -92,6 +111,88 @@ def run(args: argparse.Namespace) -> int:
           f"({summary['failed']} failed), {summary['skipped']} batches already done, "
           f"{executor.workers} workers; results in {args.out}")
     return 0
+
+
+def _run_ids(text: str) -> list[int]:
+    """``--runs 17,42`` -> [17, 42] (one line naming the option otherwise)."""
+    from ..inputs import InputError
+
+    try:
+        ids = [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise InputError("--runs", "", f"{text!r}: write run ids separated by commas, "
+                         "e.g. 17,42") from None
+    if not ids or min(ids) < 0:
+        raise InputError("--runs", "", f"{text!r}: give one or more run ids >= 0")
+    return list(dict.fromkeys(ids))
+
+
+def rerun(args: argparse.Namespace) -> int:
+    """Re-run chosen runs of a campaign with recordings; 1 if one differs from its row."""
+    _require_extra()
+    import math
+    from pathlib import Path
+
+    from ..analysis.campaign_report import worst_runs
+    from ..inputs import InputError
+    from ..simulator import SimulationError
+    from ..studies.campaign_exec import read_results
+    from ..studies.campaign_rerun import campaign_of_results, rerun as rerun_one, run_folder_name
+
+    if not args.namespace.startswith("/"):
+        raise InputError("--namespace", "", f"{args.namespace!r} must start with /")
+    _meta, table = read_results(args.dir)
+    c = campaign_of_results(args.dir)
+    if args.worst is not None:
+        positive_int(args.worst, "--worst")
+        chosen = [(r["run_id"], r["manoeuvre"])
+                  for r in worst_runs(table, args.kpi, args.worst, args.manoeuvre)]
+    else:
+        names = [m.name for m in c.manoeuvres]
+        if args.manoeuvre is not None and args.manoeuvre not in names:
+            raise InputError("--manoeuvre", "", f"no manoeuvre {args.manoeuvre!r} in "
+                             f"{c.source}; it has {', '.join(names)}")
+        ids = _run_ids(args.runs)
+        beyond = [i for i in ids if i >= c.runs]
+        if beyond:
+            raise InputError("--runs", "", f"run {beyond[0]} is not in the campaign "
+                             f"(0 to {c.runs - 1})")
+        chosen = [(i, n) for i in ids for n in names if args.manoeuvre in (None, n)]
+    taken = [f for f in (Path(args.out) / run_folder_name(i, n) for i, n in chosen)
+             if f.exists() and (not f.is_dir() or any(f.iterdir()))]
+    if taken:  # refused before anything runs
+        raise InputError(taken[0], "", "exists and is not empty: give a new --out")
+    rows = {(r["run_id"], r["manoeuvre"]): r for r in table.to_pylist()}
+    status = 0
+    for run_id, name in chosen:
+        row = rows.get((run_id, name))
+        folder = Path(args.out) / run_folder_name(run_id, name)
+        try:
+            got = rerun_one(c, run_id, name, folder, namespace=args.namespace)
+        except SimulationError as exc:
+            same = row is not None and row["status"] == "failed"
+            print(f"run {run_id} {name}: failed{' as in the campaign' if same else ''}: {exc}; "
+                  f"recorded up to the failure in {folder}")
+            status = status if same else 1
+            continue
+        line = (f"run {run_id} {name}: {folder} ({got['messages']} messages), stopping "
+                f"distance {got['stopping_distance_m']:.2f} m, peak draft "
+                f"{got['peak_draft_kN']:.1f} kN @{got['peak_draft_coupler']}, peak buff "
+                f"{got['peak_buff_kN']:.1f} kN @{got['peak_buff_coupler']}")
+        if row is None:
+            print(line + " (the results folder has no row for it yet)")
+            continue
+        keys = ("stopping_distance_m", "peak_draft_kN", "peak_buff_kN")
+        differ = [k for k in keys if row[k] is None or not (
+            math.isclose(got[k], row[k], rel_tol=1e-9, abs_tol=1e-9)
+            or (math.isnan(got[k]) and math.isnan(row[k])))]
+        if row["status"] != "ok" or differ:
+            status = 1
+            print(line + f"; DIFFERS from the campaign row ({row['status']}: "
+                  + ", ".join(f"{k} {row[k]}" for k in differ or keys) + ")")
+        else:
+            print(line + ", as in the campaign")
+    return status
 
 
 def report(args: argparse.Namespace) -> int:
