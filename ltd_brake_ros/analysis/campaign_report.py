@@ -330,6 +330,9 @@ def format_report(rep: dict) -> str:
                              f"@{r['peak_draft_coupler']}, buff {r['peak_buff_kN']:.0f} kN "
                              f"@{r['peak_buff_coupler']}, adhesion "
                              f"{r['max_adhesion_demand']:.3f}")
+        if any(sec["worst"].values()):
+            lines.append(f"  recordings of the worst runs: ltd-brake campaign rerun "
+                         f"{rep['folder']} --worst N --manoeuvre {name} --out FOLDER")
         if sec["relative"]:
             lines.append(f"  relative approach against {rep['reference']}:")
         for v in sec["relative"]:

@@ -64,6 +64,9 @@ def test_worst_runs_recorded_as_the_node_records_and_reported_alike(results, tmp
                  "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert printed.count("as in the campaign") == 2
+    main(["campaign", "report", str(results)])
+    assert f"ltd-brake campaign rerun {results} --worst N --manoeuvre emergency" \
+        in capsys.readouterr().out
     rows = [r for r in read_results(results)[1].to_pylist() if r["manoeuvre"] == "emergency"]
     worst = sorted(rows, key=lambda r: r["peak_buff_kN"])[:2]  # largest buff magnitude
     assert sorted(p.name for p in out.iterdir()) == sorted(
