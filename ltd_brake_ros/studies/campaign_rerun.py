@@ -21,6 +21,7 @@ from pathlib import Path
 from ..inputs import InputError, consist_from_mapping
 from ..inputs.campaign import Campaign, load_campaign
 from ..plant.recorder import Recorder
+from ..plant.settings import StartupError
 from ..recording.cdr_encode import encode_bool, encode_clock, encode_float64, encode_float64_array
 from ..recording.metadata import run_metadata
 from ..recording.plant_topics import ARRAY_TOPICS, CLOCK_TOPIC, COMMAND_TOPICS, plant_topics, qualify
@@ -120,7 +121,8 @@ def rerun(c: Campaign, run_id: int, manoeuvre: str, out, *, namespace: str = "/"
     Raises
     ------
     InputError
-        ``run_id`` or ``manoeuvre`` not in the campaign, or ``out`` not empty.
+        ``run_id`` or ``manoeuvre`` not in the campaign, ``out`` not empty or not writable,
+        or the ROS message packages (for the definitions in the file) not installed.
     SimulationError
         The run fails (as it failed in the campaign).
     OSError
@@ -175,7 +177,13 @@ def rerun(c: Campaign, run_id: int, manoeuvre: str, out, *, namespace: str = "/"
         write(qualify(namespace, _TOPIC_OF_INPUT[name]),
               encode_bool(value) if name == "emergency" else encode_float64(value), t_ns)
 
-    rec.open()
+    try:
+        rec.open()
+    except StartupError as exc:
+        raise InputError(out, "", exc.reason) from None
+    except (LookupError, ImportError) as exc:  # the message definitions written into the file
+        raise InputError("ROS message packages", "", f"{exc}: a recording needs std_msgs and "
+                         "rosgraph_msgs installed") from None
     try:
         _drive(sim, script, chunk_s, end_s, m.kind == "emergency", publish, command,
                publish(sim.snapshot()))

@@ -140,3 +140,26 @@ def test_topics_are_the_nodes():
             + [(f"/{t}", type_name(cls), qos_profiles_yaml(COMMAND_QOS))
                for t, (cls, _) in sim_node.INPUT_TOPICS.items()])
     assert plant_topics("/") == node
+
+
+def test_a_failing_run_leaves_a_complete_recording_up_to_the_failure(results, tmp_path,
+                                                                      monkeypatch, capsys):
+    from ltd_brake_ros.simulator import SimulationError, Simulator
+    from ltd_brake_ros.studies import campaign_rerun
+
+    class FailsAt2s(Simulator):
+        def advance(self, duration_s, commands=None):
+            if self.time_s >= 2.0 - 1e-9:
+                raise SimulationError("Newton iteration did not converge (test)")
+            return super().advance(duration_s, commands)
+
+    monkeypatch.setattr(campaign_rerun, "Simulator", FailsAt2s)
+    out = tmp_path / "o"
+    # the campaign ran it without a failure: a difference, exit status 1
+    assert main(["campaign", "rerun", str(results), "--runs", "2", "--manoeuvre", "emergency",
+                 "--out", str(out)]) == 1
+    assert "run 2 emergency: failed: Newton iteration" in capsys.readouterr().out
+    folder = out / run_folder_name(2, "emergency")
+    info = bag_info(folder)
+    assert info.complete and info.end_ns == 2_000_000_000
+    assert info.topics["/vehicles/speed"].message_count == round(2.0 / RECORD_CHUNK_S) + 1
