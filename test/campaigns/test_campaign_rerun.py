@@ -14,6 +14,7 @@ from ltd_brake_ros.recording.cdr import decode_float64_array
 from ltd_brake_ros.recording.cdr_encode import encode_float64
 from ltd_brake_ros.recording.plant_topics import plant_topics
 from ltd_brake_ros.recording.qos import parse_qos_profiles
+from ltd_brake_ros.studies.campaign import run_one
 from ltd_brake_ros.studies.campaign_exec import read_results, run_campaign
 from ltd_brake_ros.studies.campaign_rerun import RECORD_CHUNK_S, rerun, run_folder_name
 
@@ -29,15 +30,19 @@ KPIS = ("stopping_distance_m", "peak_draft_kN", "peak_draft_coupler", "peak_buff
         "peak_buff_coupler")
 
 
+def write_mixed(folder, name: str, runs: int, extra: str = ""):
+    """The small campaign with :data:`MANOEUVRES`, ``extra`` top-level YAML appended."""
+    text = SMALL.format(name=name, runs=runs, batch=3, sampling="monte_carlo", v_lo=30, v_hi=50)
+    head, _, tail = text.partition("manoeuvres:\n")
+    path = folder / f"{name}.yaml"
+    path.write_text(head + "manoeuvres:\n" + MANOEUVRES + tail.split("\n", 1)[1] + extra)
+    return path
+
+
 @pytest.fixture(scope="module")
 def results(tmp_path_factory):
     folder = tmp_path_factory.mktemp("rerun")
-    text = SMALL.format(name="mixed", runs=6, batch=3, sampling="monte_carlo", v_lo=30, v_hi=50)
-    head, _, tail = text.partition("manoeuvres:\n")
-    tail = tail.split("\n", 1)[1]  # the emergency-only line
-    path = folder / "mixed.yaml"
-    path.write_text(head + "manoeuvres:\n" + MANOEUVRES + tail)
-    run_campaign(load_campaign(path), folder / "results")
+    run_campaign(load_campaign(write_mixed(folder, "mixed", 6)), folder / "results")
     return folder / "results"
 
 
@@ -163,3 +168,14 @@ def test_a_failing_run_leaves_a_complete_recording_up_to_the_failure(results, tm
     info = bag_info(folder)
     assert info.complete and info.end_ns == 2_000_000_000
     assert info.topics["/vehicles/speed"].message_count == round(2.0 / RECORD_CHUNK_S) + 1
+
+
+@pytest.mark.parametrize("step_s", [0.03, 0.007])
+def test_steps_that_do_not_divide_the_recording_interval(tmp_path, step_s):
+    # 1 s is 34 steps of 0.0294 s (recorded every step) or 143 of 0.00699 s (143 is prime):
+    # the sub-chunks are whole numbers of the campaign's steps, so the runs stay the same
+    path = write_mixed(tmp_path, "steps", 2, f"step_s: {step_s}\n")
+    c = load_campaign(path)
+    for row in run_one(c, 1):
+        got = rerun(c, 1, row["manoeuvre"], tmp_path / row["manoeuvre"])
+        np.testing.assert_equal([got[k] for k in KPIS], [row[k] for k in KPIS])
