@@ -141,8 +141,8 @@ def rerun(args: argparse.Namespace) -> int:
 
     if not args.namespace.startswith("/"):
         raise InputError("--namespace", "", f"{args.namespace!r} must start with /")
-    _meta, table = read_results(args.dir)
-    c = campaign_of_results(args.dir)
+    meta, table = read_results(args.dir)
+    c = campaign_of_results(args.dir, meta)
     if args.worst is not None:
         positive_int(args.worst, "--worst")
         chosen = [(r["run_id"], r["manoeuvre"])

@@ -21,7 +21,7 @@ from ..physics.brakes import friction
 from ..physics.constants import G
 from .runs import emergency_stop, scripted_run
 
-__all__ = ["KPI_FIELDS", "dimensions", "draw", "inverse_cdf", "run_batch", "run_one",
+__all__ = ["KPI_FIELDS", "dimensions", "draw", "inverse_cdf", "models", "run_batch", "run_one",
            "schema_of"]
 
 #: Simulated time per chunk of an emergency stop [s] (as :func:`.runs.emergency_stop`).
@@ -169,8 +169,20 @@ def draw(c: Campaign, run_id: int) -> tuple[dict, dict]:
                     "vehicles": vehicles}
 
 
-def _models(c: Campaign, sample: dict):
-    """Brake and coupler parameters of a run, with its uncertain parameters set."""
+def models(c: Campaign, sample: dict):
+    """Brake and coupler parameters of a run, with its uncertain parameters set.
+
+    Parameters
+    ----------
+    c : Campaign
+    sample : dict
+        The run's draws (from :func:`draw`).
+
+    Returns
+    -------
+    params : BrakeParams
+    lut : CouplerLUT
+    """
     params = next(v.params for v in c.brake_params if v.name == sample["brake_params"])
     lut = next(v.params for v in c.couplers if v.name == sample["coupler"])
     known = fittable_parameters()
@@ -259,7 +271,7 @@ def run_one(c: Campaign, run_id: int) -> list[dict]:
         for m, row in zip(c.manoeuvres, rows):
             row.update(sample, speed_kmh=sample["speed_kmh"][m.name])
         consist = consist_from_mapping(data, f"{c.source} run {run_id}")
-        params, lut = _models(c, sample)
+        params, lut = models(c, sample)
     except Exception as exc:  # noqa: BLE001 - a failed run is a result, recorded with its reason
         for row in rows:
             row["status"], row["message"] = "failed", f"{type(exc).__name__}: {exc}"

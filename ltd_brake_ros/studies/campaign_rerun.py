@@ -13,7 +13,6 @@ packages (:mod:`..recording.ros_types`).
 """
 from __future__ import annotations
 
-import json
 import logging
 import math
 from pathlib import Path
@@ -24,9 +23,10 @@ from ..plant.recorder import Recorder
 from ..plant.settings import StartupError
 from ..recording.cdr_encode import encode_bool, encode_clock, encode_float64, encode_float64_array
 from ..recording.metadata import run_metadata
-from ..recording.plant_topics import ARRAY_TOPICS, CLOCK_TOPIC, COMMAND_TOPICS, plant_topics, qualify
+from ..recording.plant_topics import (ARRAY_TOPICS, CLOCK_TOPIC, COMMAND_TOPICS, plant_topics,
+                                      qualify)
 from ..simulator import Commands, SimulationError, Simulator
-from .campaign import CHUNK_S, SCRIPT_CHUNK_S, _models, draw
+from .campaign import CHUNK_S, SCRIPT_CHUNK_S, draw, models
 
 __all__ = ["RECORD_CHUNK_S", "campaign_of_results", "rerun", "run_folder_name"]
 
@@ -40,16 +40,18 @@ _TOPIC_OF_INPUT = {name: topic for topic, (_, name) in COMMAND_TOPICS.items()}
 _log = logging.getLogger(__name__)
 
 
-def campaign_of_results(folder) -> Campaign:
+def campaign_of_results(folder, manifest: dict) -> Campaign:
     """The campaign a results folder was run from.
 
-    The campaign file named in ``manifest.json`` if it is unchanged (its files are found
-    beside it), else the copy in the folder; either must have the digest the manifest states.
+    The campaign file named in the manifest if it is unchanged (its files are found beside
+    it), else the copy in the folder; either must have the digest the manifest states.
 
     Parameters
     ----------
     folder : path-like
         Results folder of ``ltd-brake campaign run``.
+    manifest : dict
+        Its manifest (:func:`~.campaign_exec.read_results`).
 
     Returns
     -------
@@ -58,25 +60,17 @@ def campaign_of_results(folder) -> Campaign:
     Raises
     ------
     InputError
-        Not a results folder, or no campaign file with the recorded digest.
+        No campaign file with the recorded digest.
     """
     folder = Path(folder)
-    manifest = folder / "manifest.json"
-    try:
-        meta = json.loads(manifest.read_text())
-    except FileNotFoundError:
-        raise InputError(folder, "", "is not a campaign results folder (no manifest.json)") \
-            from None
-    except (OSError, ValueError) as exc:
-        raise InputError(manifest, "", f"cannot read: {exc}") from None
     tried = []
-    for path in (meta.get("campaign_file"), folder / "campaign.yaml"):
+    for path in (manifest.get("campaign_file"), folder / "campaign.yaml"):
         if path and Path(path).is_file():
             c = load_campaign(path)
-            if c.digest == meta.get("digest"):
+            if c.digest == manifest.get("digest"):
                 return c
             tried.append(str(path))
-    raise InputError(manifest, "digest", "no campaign file with this digest: "
+    raise InputError(folder / "manifest.json", "digest", "no campaign file with this digest: "
                      + (f"{', '.join(tried)} changed since the run" if tried else
                         "campaign.yaml is missing"))
 
@@ -140,7 +134,7 @@ def rerun(c: Campaign, run_id: int, manoeuvre: str, out, *, namespace: str = "/"
         raise InputError(out, "", "exists and is not empty: give a new folder")
     sample, data = draw(c, run_id)
     consist = consist_from_mapping(data, f"{c.source} run {run_id}")
-    params, lut = _models(c, sample)
+    params, lut = models(c, sample)
     speed = sample["speed_kmh"][m.name]
     sim = Simulator(consist, speed, params, lut, step_s=c.step_s)
     if m.kind == "emergency":

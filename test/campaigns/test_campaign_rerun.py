@@ -179,3 +179,26 @@ def test_steps_that_do_not_divide_the_recording_interval(tmp_path, step_s):
     for row in run_one(c, 1):
         got = rerun(c, 1, row["manoeuvre"], tmp_path / row["manoeuvre"])
         np.testing.assert_equal([got[k] for k in KPIS], [row[k] for k in KPIS])
+
+
+def test_the_campaign_is_the_one_that_ran(results, tmp_path, capsys):
+    import json
+    import shutil
+
+    copy = tmp_path / "results"
+    shutil.copytree(results, copy)
+    manifest = json.loads((copy / "manifest.json").read_text())
+    # the file named in the manifest is gone: the copy in the folder serves
+    manifest["campaign_file"] = str(tmp_path / "gone.yaml")
+    (copy / "manifest.json").write_text(json.dumps(manifest))
+    assert main(["campaign", "rerun", str(copy), "--runs", "0", "--manoeuvre", "emergency",
+                 "--out", str(tmp_path / "a")]) == 0
+    capsys.readouterr()
+    # an edited copy is not the campaign that ran: refused, naming the manifest's digest
+    text = (copy / "campaign.yaml").read_text()
+    (copy / "campaign.yaml").write_text(text.replace("seed: 11", "seed: 12"))
+    assert main(["campaign", "rerun", str(copy), "--runs", "0", "--out",
+                 str(tmp_path / "b")]) == 2
+    err = capsys.readouterr().err
+    assert "manifest.json: digest: no campaign file with this digest" in err, err
+    assert not (tmp_path / "b").exists()

@@ -120,13 +120,13 @@ def test_sigkill_of_the_driver_then_resume(reference, tmp_path, processes):
 def test_adhesion_demand_is_the_peak_of_a_finely_sampled_stop(reference):
     from ltd_brake_ros.inputs import consist_from_mapping
     from ltd_brake_ros.simulator import Commands, Simulator
-    from ltd_brake_ros.studies.campaign import _models, draw
+    from ltd_brake_ros.studies.campaign import draw, models
 
     c, table = reference
     for run in (0, 5):
         sample, data = draw(c, run)
         consist = consist_from_mapping(data, "test")
-        params, lut = _models(c, sample)
+        params, lut = models(c, sample)
         sim = Simulator(consist, sample["speed_kmh"]["emergency"], params, lut, step_s=c.step_s)
         weight_N = np.array([v.mass_kg for v in consist.vehicles]) * G
         peak = sim.advance(c.step_s, Commands(emergency=True)).brake_force_N / weight_N
