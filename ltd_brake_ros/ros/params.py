@@ -102,8 +102,9 @@ PARAMETERS = (
     ParamSpec("record", False,
               "Record every published and received message to an MCAP bag folder"),
     ParamSpec("record_dir", "",
-              "Bag folder for record:=true; empty = runs/run_<date>-<time> in the working "
-              "directory; after ~/reset a new folder <record_dir>_2, _3, ... is started"),
+              "Bag folder for record:=true, which must not exist or be empty; empty = "
+              "runs/run_<date>-<time> in the working directory; after ~/reset the next run "
+              "goes to the next free <record_dir>_2, _3, ..."),
 )
 
 _TYPE_WORDS = {bool: "true or false", int: "a whole number", float: "a number with a decimal "
