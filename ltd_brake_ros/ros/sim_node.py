@@ -42,14 +42,15 @@ from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.serialization import serialize_message  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
-from std_msgs.msg import Bool, Float64, Float64MultiArray  # noqa: E402
+from std_msgs.msg import Bool, Float64MultiArray  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
 
 from ..plant.diagnostics import PlantStatus  # noqa: E402
 from ..plant.recorder import Recorder  # noqa: E402
 from ..plant.runner import PlantRunner  # noqa: E402
-from ..recording.bag import type_name  # noqa: E402
+from ..recording.bag import message_class, type_name  # noqa: E402
 from ..recording.metadata import run_metadata  # noqa: E402
+from ..recording.plant_topics import ARRAY_TOPICS, CLOCK_TOPIC, COMMAND_TOPICS  # noqa: E402
 from ..recording.qos import qos_profiles_yaml  # noqa: E402
 from ..simulator import Snapshot  # noqa: E402
 from .messages import (CLOCK_QOS, COMMAND_QOS, DIAGNOSTICS_QOS, STATE_QOS,  # noqa: E402
@@ -59,19 +60,11 @@ from .params import (PARAMETERS, StartupError, build_simulator,  # noqa: E402
                      plant_settings)
 
 NODE_NAME = "sim_node"
-#: Published arrays: topic, Snapshot attribute, ``layout.dim[0].label``.
-ARRAY_TOPICS = (
-    ("vehicles/speed", "speed_m_s", "vehicle"),
-    ("vehicles/position", "position_m", "vehicle"),
-    ("vehicles/brake_force", "brake_force_N", "vehicle"),
-    ("vehicles/traction_force", "traction_force_N", "vehicle"),
-    ("couplers/force", "coupler_force_N", "coupler"),
-)
-CLOCK_TOPIC = "/clock"
 DIAGNOSTICS_TOPIC = "/diagnostics"
-#: Input topics: message type and the plant input each one sets.
-INPUT_TOPICS = {"brake_command": (Bool, "emergency"), "brake_demand": (Float64, "brake_demand"),
-                "traction_command": (Float64, "traction")}
+#: Input topics: message class and the plant input each one sets (the one table of
+#: :mod:`~ltd_brake_ros.recording.plant_topics`, which the published arrays come from too).
+INPUT_TOPICS = {topic: (message_class(msg_type), name)
+                for topic, (msg_type, name) in COMMAND_TOPICS.items()}
 
 Tap = Callable[[str, Any, int, bool], None]
 
