@@ -73,7 +73,17 @@ class Signals:
             for sig in (signal.SIGINT, signal.SIGTERM):
                 signal.signal(sig, self._handle)
         except ValueError:  # not the main thread: the embedding program handles signals
-            pass
+            return self
+        previous = sys.unraisablehook
+
+        def unraisable(info) -> None:
+            # an Interrupted raised while C code had called back into Python (numba's
+            # compiler does) cannot leave the callback: Python would print it as "Exception
+            # ignored"; the signal stays remembered and interruptible() raises it again
+            if not (isinstance(info.exc_type, type) and issubclass(info.exc_type, Interrupted)):
+                previous(info)
+
+        sys.unraisablehook = unraisable
         return self
 
     @contextmanager
@@ -81,7 +91,8 @@ class Signals:
         """Within the block the first signal raises :class:`Interrupted` at once.
 
         For start-up, where nothing needs finishing yet and a slow step (compiling the kernel)
-        must not delay the exit.
+        must not delay the exit. A signal whose exception was lost in a C callback is raised
+        when the block ends.
         """
         if self.received is not None:
             raise Interrupted(self.received)
@@ -90,6 +101,8 @@ class Signals:
             yield
         finally:
             self._raising = False
+        if self.received is not None:
+            raise Interrupted(self.received)
 
     def _handle(self, signum, _frame) -> None:
         if self.received is None:

@@ -104,6 +104,26 @@ def test_while_starting_the_first_signal_interrupts(signals):
             pass
 
 
+def test_a_signal_lost_in_a_c_callback_still_ends_start_up_quietly(signals, capfd):
+    """numba's compiler calls back into Python from C: an exception raised there cannot
+    propagate (Python prints it as "Exception ignored"); start-up must end all the same."""
+    import ctypes
+
+    steps = []
+
+    @ctypes.CFUNCTYPE(None)
+    def callback():
+        os.kill(os.getpid(), signal.SIGINT)
+        steps.append("after the signal, inside the callback")
+
+    with pytest.raises(Interrupted):
+        with signals.interruptible():
+            callback()
+            steps.append("after the callback")
+    assert steps == ["after the callback"]  # the callback ended at the signal, start-up did not
+    assert "Exception ignored" not in capfd.readouterr().err
+
+
 def test_while_running_a_signal_is_remembered_and_a_further_one_only_logged(signals, capfd):
     os.kill(os.getpid(), signal.SIGINT)
     assert signals.received == signal.SIGINT  # no KeyboardInterrupt: the loop ends by itself
