@@ -59,6 +59,26 @@ def wait_for_output(proc, text: str, timeout_s: float = 60.0) -> float:
     return time.monotonic()
 
 
+def wait_until_signals_handled(proc, timeout_s: float = 60.0) -> float:
+    """Wait until the process handles SIGTERM itself (``SigCgt`` in ``/proc/<pid>/status``);
+    returns the monotonic time seen. Python handles SIGINT from its start, SIGTERM only once
+    the program installs its own handling."""
+    mask = 1 << (signal.SIGTERM - 1)
+    end = time.monotonic() + timeout_s
+    while True:
+        try:
+            status = Path(f"/proc/{proc.pid}/status").read_text()
+        except OSError:
+            status = ""
+        caught = next((int(line.split()[1], 16) for line in status.splitlines()
+                       if line.startswith("SigCgt:")), 0)
+        if caught & mask:
+            return time.monotonic()
+        if proc.popen.poll() is not None or time.monotonic() > end:
+            pytest.fail(f"{proc.argv[0]} never handled SIGTERM:\n{proc.output()}")
+        time.sleep(0.002)
+
+
 def signal_group(proc, sig: int) -> None:
     """Send ``sig`` to the process group of ``proc`` (robust to the ROS wheels' re-exec)."""
     try:
