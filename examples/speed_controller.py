@@ -44,6 +44,8 @@ from std_srvs.srv import Trigger
 
 KMH_PER_M_S = 3.6
 
+#: Wall time before a question to the plant is asked again [s] (see SpeedController._query).
+QUERY_RETRY_S = 1.0
 #: Same QoS as the plant's inputs and state topics: reliable, so nothing is lost in lock-step.
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -226,10 +228,25 @@ class SpeedController(Node):
                 raise TimeoutError(f"no {what} within {timeout_s:g} s")
             self._spinner.spin_once(timeout_sec=0.05)
 
-    def _call(self, client, request, what: str):
-        future = client.call_async(request)
-        self._spin_until(future.done, f"answer from {what}")
-        return future.result()
+    def _query(self, client, request, what: str):
+        """Ask a question without side effects (get_parameters) until it is answered.
+
+        An answer the plant sends before it has matched this node's reader is lost (right
+        after start-up the service can look ready a moment before that); asking again is
+        harmless. A step is never repeated: its state is its acknowledgement (:meth:`_step`).
+        """
+        deadline = time.monotonic() + self.timeout_s
+        while True:
+            future = client.call_async(request)
+            wait_s = min(QUERY_RETRY_S, max(deadline - time.monotonic(), 0.05))
+            try:
+                self._spin_until(future.done, f"answer from {what}", wait_s)
+                return future.result()
+            except TimeoutError:
+                client.remove_pending_request(future)
+                if time.monotonic() >= deadline:
+                    raise TimeoutError(f"no answer from {what} within "
+                                       f"{self.timeout_s:g} s") from None
 
     def _connect(self) -> float:
         """Wait for the plant, check it is in lock-step and return its chunk length [s]."""
@@ -237,7 +254,7 @@ class SpeedController(Node):
                          and self._param_client.service_is_ready(), f"plant {self._plant}",
                          self.connect_timeout_s)
         names = ["lockstep", "chunk_s", "steps_per_call"]
-        reply = self._call(self._param_client, GetParameters.Request(names=names),
+        reply = self._query(self._param_client, GetParameters.Request(names=names),
                            f"{self._plant}/get_parameters")
         lockstep, chunk_s, steps = (parameter_value_to_python(v) for v in reply.values)
         if lockstep is not True or steps != 1:
@@ -287,7 +304,7 @@ class SpeedController(Node):
         # heartbeat, seconds per step). One cheap round trip through the plant's executor (an
         # empty get_parameters call) gives the commands that much head start, so they are
         # waiting in the plant's readers when the ~/step request arrives.
-        self._call(self._param_client, GetParameters.Request(names=[]),
+        self._query(self._param_client, GetParameters.Request(names=[]),
                    f"{self._plant}/get_parameters")
 
     # ------------------------------------------------------------------ the loop
