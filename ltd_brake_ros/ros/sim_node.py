@@ -80,7 +80,8 @@ class SimNode(Node):
     Raises
     ------
     StartupError
-        A parameter value is unusable; the node is destroyed again.
+        A parameter value is unusable, a given parameter is not one of the node's, or
+        ``record_dir`` holds anything; the node is destroyed again.
     """
 
     def __init__(self, **kwargs):
