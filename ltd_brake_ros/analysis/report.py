@@ -40,14 +40,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..physics.constants import STANDSTILL_M_S
-from ..recording.cdr import decode_float64_array  # noqa: F401 - re-exported
 from ..recording.reader import BagError, bag_info
 from ..simulator import CouplerPeaks
-from .export import write_csv  # noqa: F401 - re-exported: one import for the whole analysis
-from .plots import write_plots  # noqa: F401
 from .samples import BRAKE_COMMAND, plant_samples
 
-__all__ = ["RunReport", "analyse", "write_plots", "write_csv", "decode_float64_array"]
+__all__ = ["RunReport", "analyse"]
 
 _HEAT_BINS = 1500
 _SIGN = ("coupler force: draft (tension) positive, buff (compression) negative; "

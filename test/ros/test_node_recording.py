@@ -26,7 +26,8 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 
-from ltd_brake_ros.analysis.report import analyse, write_plots
+from ltd_brake_ros.analysis.plots import write_plots
+from ltd_brake_ros.analysis.report import analyse
 from ltd_brake_ros.inputs import get_scenario
 from ltd_brake_ros.recording.bag import bag_info
 from ltd_brake_ros.studies.runs import emergency_stop
