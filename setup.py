@@ -13,6 +13,9 @@ setup(
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+        # ros2 launch ltd_brake_ros <file>; Foxglove and PlotJuggler layouts
+        (f"share/{PACKAGE}/launch", sorted(glob("launch/*.launch.*"))),
+        (f"share/{PACKAGE}/layouts", sorted(glob("layouts/*.json") + glob("layouts/*.xml"))),
     ] + [
         (f"share/{PACKAGE}/{folder}", glob(f"{folder}/*.yaml") + glob(f"{folder}/*.csv"))
         for folder in sorted(p.rstrip("/") for p in glob("config/*/"))
@@ -45,6 +48,8 @@ setup(
         "test": ["pytest>=8", "pytest-timeout>=2.3", "hypothesis>=6.100", "rosbags>=0.10",
                  "mcap-ros2-support>=0.5"],
     },
+    # the closed-loop example, which trains.launch.py starts (colcon: lib/ltd_brake_ros, pip: bin)
+    scripts=glob("examples/speed_controller.py"),
     zip_safe=True,
     maintainer="ltd_brake_ros maintainers",
     maintainer_email="maintainers@ltd-brake-ros.invalid",

@@ -1,0 +1,133 @@
+"""One train plant: ``sim_node`` in a namespace of its own.
+
+    ros2 launch ltd_brake_ros sim.launch.py --show-args
+    ros2 launch ltd_brake_ros sim.launch.py namespace:=/train1 record:=true
+    ros2 launch ltd_brake_ros sim.launch.py params_file:=my_plant.yaml real_time_factor:=0
+
+The node takes ``params_file`` (default: the installed ``config/sim_node.yaml``, whose
+``/**/sim_node:`` key applies in any namespace), then every argument given on the command
+line. An argument left empty keeps the file's value, so a value in your own file is never
+overridden by a default of this launch file. Values are checked as the node checks
+``-p name:=value``: a bad one stops the launch with one line naming the argument.
+``sim.launch.xml`` is the same launch for XML launch files.
+"""
+from __future__ import annotations
+
+import os
+
+from ament_index_python.packages import get_package_prefix, get_package_share_directory
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, OpaqueFunction, Shutdown
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+
+PACKAGE = "ltd_brake_ros"
+#: The plant's executable and node name (controllers find its services under this name).
+PLANT = "sim_node"
+
+#: Launch arguments that set a node parameter: argument -> (parameter, type, description).
+#: Empty (the default of every one) keeps the value of params_file.
+PARAMETER_ARGUMENTS = {
+    "consist": ("consist", "str",
+                "Consist YAML file or scenario (scenario_6 or 6)"),
+    "initial_speed_kmh": ("initial_speed_kmh", "float",
+                          "Initial speed [km/h]; -1 = the scenario's"),
+    "chunk_s": ("chunk_s", "float",
+                "Simulated time advanced and published per chunk [s]"),
+    "real_time_factor": ("real_time_factor", "float",
+                         "Simulated seconds per wall second; 0 = as fast as possible"),
+    "lock_step": ("lockstep", "bool",
+                  "true: advance only when <namespace>/sim_node/step is called"),
+    "clock": ("clock", "str",
+              "/clock policy: auto (publish unless another plant does, then follow it), "
+              "publish, follow (run on another plant's /clock) or off"),
+    "auto_brake_at_s": ("auto_brake_at_s", "float",
+                        "Emergency brake by itself at this simulated time [s]; -1 = never"),
+    "max_sim_time_s": ("max_sim_time_s", "float",
+                       "Stop (and end the launch) at this simulated time [s]; -1 = never"),
+    "shutdown_after_stop_s": ("shutdown_after_stop_s", "float",
+                              "Stop (and end the launch) this long after the train has stopped "
+                              "[s simulated]; -1 = never"),
+    "record": ("record", "bool",
+               "Record everything published and received to an MCAP bag folder"),
+    "record_dir": ("record_dir", "str",
+                   "Bag folder (must not exist or be empty); empty = runs/run_<date>-<time> "
+                   "in the working directory"),
+}
+#: Accepted values of the arguments that have a fixed set (empty = the file's value).
+CHOICES = {"bool": ["", "true", "false"],
+           "clock": ["", "auto", "publish", "follow", "off"]}
+#: Arguments that do not set a parameter: argument -> (default, description).
+OTHER_ARGUMENTS = {
+    "namespace": ("", "Namespace of the node and its topics, e.g. /train1 (empty = /)"),
+    "params_file": ("", "Parameter file (/**/sim_node: ros__parameters:); empty = the "
+                        "installed share/ltd_brake_ros/config/sim_node.yaml"),
+    "log_level": ("info", "Log level of the node (debug, info, warn, error, fatal)"),
+}
+
+
+def installed_executable(name: str) -> dict:
+    """``Node`` keywords that find executable ``name`` of this package.
+
+    colcon installs executables to ``<prefix>/lib/ltd_brake_ros`` (where ``ros2 run`` looks);
+    ``pip install`` puts them on ``PATH``.
+
+    Parameters
+    ----------
+    name : str
+        Executable name.
+
+    Returns
+    -------
+    dict
+        ``package`` and ``executable``, or ``executable`` alone (found on ``PATH``).
+    """
+    if os.access(os.path.join(get_package_prefix(PACKAGE), "lib", PACKAGE, name), os.X_OK):
+        return {"package": PACKAGE, "executable": name}
+    return {"executable": name}
+
+
+def _typed(argument: str, text: str, kind: str):
+    """The parameter value of a launch argument's text, or ValueError naming the argument."""
+    if kind == "str":
+        return text
+    if kind == "bool":
+        return text == "true"  # the argument's choices admit only true and false
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"launch argument {argument}: {text!r} is not a number") from None
+
+
+def _plant(context):
+    """The sim_node action for the arguments' values."""
+    def value(name: str) -> str:
+        return LaunchConfiguration(name).perform(context).strip()
+
+    params_file = value("params_file") or os.path.join(
+        get_package_share_directory(PACKAGE), "config", "sim_node.yaml")
+    if not os.path.isfile(params_file):
+        raise ValueError(f"launch argument params_file: {params_file} is not a file")
+    overrides = {parameter: _typed(argument, value(argument), kind)
+                 for argument, (parameter, kind, _) in PARAMETER_ARGUMENTS.items()
+                 if value(argument)}
+    return [Node(**installed_executable(PLANT), name=PLANT,
+                 namespace=value("namespace") or None,
+                 parameters=[params_file, overrides],
+                 ros_arguments=["--log-level", value("log_level")],
+                 output="screen", emulate_tty=True,
+                 # a plant that stops by itself (max_sim_time_s, shutdown_after_stop_s, a
+                 # start-up error) ends the launch
+                 on_exit=Shutdown(reason=f"{PLANT} exited"))]
+
+
+def generate_launch_description() -> LaunchDescription:
+    """Arguments and the plant (see the module docstring)."""
+    arguments = [DeclareLaunchArgument(name, default_value=default, description=text)
+                 for name, (default, text) in OTHER_ARGUMENTS.items()]
+    for name, (_, kind, text) in PARAMETER_ARGUMENTS.items():
+        choices = CHOICES.get(name, CHOICES.get(kind))
+        arguments.append(DeclareLaunchArgument(
+            name, default_value="", choices=choices,
+            description=f"{text} (empty = the value in params_file)"))
+    return LaunchDescription([*arguments, OpaqueFunction(function=_plant)])

@@ -1,0 +1,114 @@
+"""The Foxglove and PlotJuggler layouts name only what the plant publishes.
+
+Every message path of the Foxglove layout and every curve of the PlotJuggler layout must name a
+topic of the plant's topic table (``recording.plant_topics``: what ``sim_node`` publishes and a
+recording holds), a field its message type has, and for the per-vehicle and per-coupler
+``sensor_msgs/JointState`` topics a joint name the node gives (checked on paper scenario 6,
+which the layouts are drawn for).
+"""
+from __future__ import annotations
+
+import importlib
+import json
+import re
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from ltd_brake_ros.recording.plant_topics import STATE_TOPICS, joint_names, plant_topics
+
+pytestmark = pytest.mark.ros
+
+LAYOUTS = Path(__file__).resolve().parents[2] / "layouts"
+#: Scenario 6: E402B + 32 Shimmns.
+VEHICLES, COUPLERS = 33, 32
+
+
+def _topic_types() -> dict[str, str]:
+    return {name: msg_type for name, msg_type, _ in plant_topics("/")}
+
+
+def _message_class(msg_type: str):
+    package, _, name = msg_type.split("/")
+    return getattr(importlib.import_module(f"{package}.msg"), name)
+
+
+def _joint_names(topic: str) -> list[str]:
+    """Names the plant gives the joints of a JointState topic, for scenario 6."""
+    from ltd_brake_ros.inputs import get_scenario
+
+    kind, = (k for t, k in STATE_TOPICS if f"/{t}" == topic)
+    names = joint_names(kind, get_scenario(6).consist().n)
+    assert len(names) == (VEHICLES if kind == "vehicle" else COUPLERS)
+    return names
+
+
+def _check_field(topic: str, fields: list[tuple[str, str | None]]) -> None:
+    """``fields``: (field, index text or None) from the path after the topic."""
+    types = _topic_types()
+    assert topic in types, f"{topic} is not a plant topic"
+    cls = _message_class(types[topic])
+    (field, index), = fields
+    kinds = cls.get_fields_and_field_types()
+    assert field in kinds, f"{topic} ({types[topic]}) has no field {field}"
+    if index is not None:
+        assert kinds[field].startswith("sequence<double"), (topic, field, kinds[field])
+        assert re.fullmatch(r"-?\d+|:", index), (topic, index)
+        if index not in (":", "-1"):
+            bound = COUPLERS if topic.startswith("/couplers") else VEHICLES
+            assert 0 <= int(index) < bound, f"{topic}.{field}[{index}] is beyond scenario 6"
+
+
+# --------------------------------------------------------------------------- Foxglove
+
+
+FOXGLOVE_PATH = re.compile(r"(?P<topic>/[A-Za-z0-9_/]+)\.(?P<field>[a-z_]+)"
+                           r"(?:\[(?P<index>-?\d+|:)\])?")
+
+
+def _tree_leaves(node) -> list[str]:
+    if isinstance(node, str):
+        return [node]
+    return _tree_leaves(node["first"]) + _tree_leaves(node["second"])
+
+
+def test_foxglove_layout_plots_plant_topics_and_places_every_panel():
+    layout = json.loads((LAYOUTS / "foxglove_train.json").read_text())
+    panels = layout["configById"]
+    assert sorted(_tree_leaves(layout["layout"])) == sorted(panels)
+    plotted = set()
+    for panel, config in panels.items():
+        assert panel.split("!")[0] == "Plot", f"{panel}: only Plot panels are checked here"
+        assert config["xAxisVal"] in ("timestamp", "index"), panel
+        for path in config["paths"]:
+            match = FOXGLOVE_PATH.fullmatch(path["value"])
+            assert match, f"{panel}: {path['value']} is not topic.field[index]"
+            _check_field(match["topic"], [(match["field"], match["index"])])
+            # stamped topics plot against simulated time, live or recorded
+            assert path["timestampMethod"] == "headerStamp", (panel, path)
+            plotted.add(match["topic"])
+            if config["xAxisVal"] == "index":  # one value per coupler at the playback time
+                assert match["index"] == ":", (panel, path)
+    assert plotted == {"/vehicles/state", "/couplers/state"}
+    coupler_map = [p["value"] for p in panels["Plot!couplermap"]["paths"]]
+    assert coupler_map == [f"/couplers/state.effort[{i}]" for i in range(COUPLERS)]
+
+
+# --------------------------------------------------------------------------- PlotJuggler
+
+
+def test_plotjuggler_layout_curves_are_joints_the_plant_publishes():
+    root = ET.parse(LAYOUTS / "plotjuggler_train.xml").getroot()
+    types = _topic_types()
+    curves = [c.get("name") for c in root.iter("curve")]
+    assert len(curves) > COUPLERS
+    for curve in curves:
+        topic, joint, field = curve.rsplit("/", 2)
+        assert types.get(topic) == "sensor_msgs/msg/JointState", curve
+        assert joint in _joint_names(topic), f"{curve}: no joint {joint} in scenario 6"
+        assert field in ("position", "velocity", "effort"), curve
+    subscribed = [t.get("name") for t in root.iter("topic")]
+    assert subscribed and set(subscribed) <= set(types)
+    plugins = {p.get("ID") for p in root.iter("plugin")}
+    assert {"DataLoad MCAP", "ROS2 Topic Subscriber"} <= plugins
