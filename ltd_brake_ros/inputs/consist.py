@@ -88,6 +88,30 @@ class Traction:
 
 
 @dataclass(frozen=True)
+class VehicleLimits:
+    """Limits the verdicts on a run hold a vehicle to; ``None``: not given here (the coupler
+    model's, else the standard default of :mod:`ltd_brake_ros.verdicts`).
+
+    Attributes
+    ----------
+    draft_strength_N : float or None
+        Breaking load of its draw gear (draw hook, screw coupling) [N].
+    buff_strength_N : float or None
+        Compressive strength of its buffers and end structure, magnitude [N].
+    endurable_lcf_N : float or None
+        Endurable longitudinal compressive force: the buff force it runs safely under
+        (EN 15839, from the UIC 530-2 tests), magnitude [N].
+    adhesion_limit : float or None
+        Largest wheel-rail adhesion its brake may demand, brake force / weight [-].
+    """
+
+    draft_strength_N: float | None = None
+    buff_strength_N: float | None = None
+    endurable_lcf_N: float | None = None
+    adhesion_limit: float | None = None
+
+
+@dataclass(frozen=True)
 class Vehicle:
     """One vehicle of the consist.
 
@@ -108,7 +132,9 @@ class Vehicle:
     brake_position : str
         ``P`` (passenger, the validated position) or ``G`` (goods).
     traction : Traction or None
-        Traction and dynamic brake of a powered vehicle.
+        Traction and dynamic brake of a powered vehicle (a locomotive).
+    limits : VehicleLimits
+        Strength and adhesion limits of the vehicle for the verdicts on a run.
     """
 
     name: str
@@ -119,6 +145,7 @@ class Vehicle:
     brake: BlockBrake | DiscBrake | None
     brake_position: str = "P"
     traction: Traction | None = None
+    limits: VehicleLimits = VehicleLimits()
 
     @property
     def braked_weight_t(self) -> float:
@@ -146,11 +173,27 @@ class Consist:
         Vehicle 0 is the head.
     source : str
         File the consist came from.
+    venting : int or None
+        Index of the vehicle whose driver's brake valve vents the brake pipe, as the file
+        names it (``venting_vehicle``); ``None``: the leading locomotive (see
+        :attr:`venting_vehicle`).
     """
 
     name: str
     vehicles: tuple[Vehicle, ...]
     source: str = ""
+    venting: int | None = None
+
+    @property
+    def venting_vehicle(self) -> int:
+        """Index of the vehicle that vents the brake pipe (Eq. 6's delays count from it).
+
+        The one the file names, else the leading locomotive: the first vehicle with traction
+        (the driver's brake valve is in the driving cab), else vehicle 0.
+        """
+        if self.venting is not None:
+            return self.venting
+        return next((i for i, v in enumerate(self.vehicles) if v.traction is not None), 0)
 
     @property
     def n(self) -> int:
@@ -169,7 +212,7 @@ class Consist:
 
 
 _VEHICLE_FIELDS = {"type", "count", "description", "mass_t", "length_m", "axles",
-                   "inertia_factor", "brake", "brake_position", "traction"}
+                   "inertia_factor", "brake", "brake_position", "traction", "limits"}
 _BRAKE_TYPES = ("blocks", "disc", "none")
 
 
@@ -234,6 +277,21 @@ def _parse_traction(data: Any, source: str, path: str) -> Traction:
         fade_speed_m_s=f.number("fade_speed_kmh", 5.0, lo=0.0, lo_open=True, hi=100.0) / 3.6)
 
 
+def _parse_limits(data: Any, source: str, path: str, base: VehicleLimits) -> VehicleLimits:
+    """Limits given in a ``limits`` mapping, the others from ``base``."""
+    f = Fields(data, source, path)
+    f.reject_unknown({"draft_strength_kN", "buff_strength_kN", "endurable_lcf_kN",
+                      "adhesion_limit"})
+    # forces up to 20 000 kN, ten times a wagon body's proof load (as the coupler tables)
+    values = {name: 1e3 * f.number(key, lo=0.0, lo_open=True, hi=20000.0)
+              for name, key in (("draft_strength_N", "draft_strength_kN"),
+                                ("buff_strength_N", "buff_strength_kN"),
+                                ("endurable_lcf_N", "endurable_lcf_kN")) if f.has(key)}
+    if f.has("adhesion_limit"):
+        values["adhesion_limit"] = f.number("adhesion_limit", lo=0.0, lo_open=True, hi=1.0)
+    return replace(base, **values)
+
+
 def _check_braked_weight(f: Fields, name: str, b_t: float, mass_t: float) -> None:
     # Braked-weight percentages above 200 % do not exist on real vehicles (UIC 544-1 tables
     # stop well below); such a value is a unit or typing error.
@@ -260,9 +318,11 @@ def consist_from_mapping(data: Any, source: str, base: Path | None = None) -> Co
     Parameters
     ----------
     data : mapping
-        ``name``, optional ``vehicle_types`` (merged over the shipped ``vehicles.yaml``) and
+        ``name``, optional ``vehicle_types`` (merged over the shipped ``vehicles.yaml``),
         ``vehicles``: a list from the head, each entry a ``type`` with optional ``count`` and
-        field overrides, or a complete vehicle.
+        field overrides, or a complete vehicle; optional ``venting_vehicle`` (index of the
+        vehicle that vents the brake pipe; default the leading locomotive) and ``limits``
+        (the verdicts' limits of every vehicle that does not give its own).
     source : str
         File name for error messages.
     base : pathlib.Path, optional
@@ -273,7 +333,10 @@ def consist_from_mapping(data: Any, source: str, base: Path | None = None) -> Co
     Consist
     """
     top = Fields(data, source)
-    top.reject_unknown({"name", "description", "vehicle_types", "vehicles"})
+    top.reject_unknown({"name", "description", "vehicle_types", "vehicles", "venting_vehicle",
+                        "limits"})
+    train_limits = _parse_limits(top.data["limits"], source, "limits", VehicleLimits()) \
+        if top.has("limits") else VehicleLimits()
     train_name = top.string("name", "") or Path(source).stem
     library = _vehicle_types(str(config_dir() / "vehicles.yaml"),
                              (load_yaml(config_dir() / "vehicles.yaml") or {}).get("vehicle_types"),
@@ -311,10 +374,14 @@ def consist_from_mapping(data: Any, source: str, base: Path | None = None) -> Co
         position = g.string("brake_position", "P", choices=("P", "G"))
         traction = _parse_traction(g.data["traction"], source, g.sub("traction")) \
             if g.has("traction") else None
+        limits = _parse_limits(g.data["limits"], source, g.sub("limits"), train_limits) \
+            if g.has("limits") else train_limits
         name = str(f.data.get("type", f"vehicle {i}"))
         vehicles.extend([Vehicle(name, mass_t * 1e3, length, axles, rho, brake, position,
-                                 traction)] * count)
-    return Consist(train_name, tuple(vehicles), str(source))
+                                 traction, limits)] * count)
+    venting = top.integer("venting_vehicle", lo=0, hi=len(vehicles) - 1) \
+        if top.has("venting_vehicle") else None
+    return Consist(train_name, tuple(vehicles), str(source), venting)
 
 
 def load_consist(path: str | os.PathLike) -> Consist:

@@ -135,12 +135,13 @@ def test_g_position_fills_slower_and_uses_its_braked_weight():
     assert sim.snapshot().block_force_N[0] / sim.max_block_force_N[0] == pytest.approx(0.95, rel=1e-6)
 
 
-def test_locomotive_in_the_middle_brakes_with_head_delay():
+def test_locomotive_in_the_middle_vents_the_brake_pipe_both_ways():
     c = consist_from_mapping({"vehicles": [
         {"type": "Shimmns", "count": 5, "mass_t": 80.0}, {"type": "E402B"},
         {"type": "Shimmns", "count": 5, "mass_t": 80.0}]}, "<test>")
     sim = Simulator(c, 80.0)
-    assert np.all(np.diff(sim.brake_delay_s) > 0)  # the signal still starts at the head
+    d = sim.brake_delay_s  # the driver's brake valve in the locomotive (vehicle 5) vents
+    assert np.all(np.diff(d[:6]) < 0) and np.all(np.diff(d[5:]) > 0)
     assert stop_distance(sim, Commands(emergency=True)) > 0
 
 

@@ -23,7 +23,8 @@ class BrakeArrays(NamedTuple):
     model : int
         Registry id of the model (selects its branch of the one jitted dispatch).
     delay_s : ndarray
-        When a command issued at the head reaches each vehicle's brake, after the command [s].
+        When a command reaches each vehicle's brake, after it was issued [s] (see
+        :func:`vent_delay_s`).
     force_max_N : ndarray
         Full block force of each vehicle, 1000 * sum(F_dyn) (Eq. 4 inverted) [N]; zeros when
         the brakes are switched off.
@@ -143,19 +144,22 @@ def released_state(n: int, extra_columns: int = 0) -> BrakeState:
                       np.zeros((n, extra_columns)))
 
 
-def head_vent_delay_s(consist, t_app_s: float, v_air_m_s: float,
-                      simultaneous: bool) -> np.ndarray:
-    """Delay of each vehicle's brake after a command at the head, Eq. 5-6.
+def vent_delay_s(consist, t_app_s: float, v_air_m_s: float, simultaneous: bool) -> np.ndarray:
+    """Delay of each vehicle's brake after a command, Eq. 5-6, timed from the venting vehicle.
 
-    t_app + t_del, t_del = distance / v_air from the head's centre to the vehicle's (0 when
-    every vehicle is commanded at once).
+    The driver's brake valve vents the brake pipe in the venting vehicle
+    (``consist.venting_vehicle``: the leading locomotive unless the consist names another);
+    the pressure drop travels from there both ways along the train. Each vehicle's delay is
+    t_app + t_del, t_del = |distance| / v_air between the venting vehicle's centre and its own
+    (0 when every vehicle is commanded at once). For a train vented at vehicle 0 this is Eq. 6
+    as the paper states it, distance from the head.
 
     Parameters
     ----------
     consist : Consist
-        The train, head first (vehicle lengths).
+        The train, head first (vehicle lengths, venting vehicle).
     t_app_s : float
-        Delay from the command to the pressure rise at the head [s].
+        Delay from the command to the pressure rise at the venting vehicle [s].
     v_air_m_s : float
         Propagation speed of the brake-pipe pressure drop [m/s].
     simultaneous : bool
@@ -167,5 +171,5 @@ def head_vent_delay_s(consist, t_app_s: float, v_air_m_s: float,
         [s].
     """
     centre = centre_offsets_m(np.array([v.length_m for v in consist.vehicles]))
-    distance = centre - centre[0]
+    distance = np.abs(centre - centre[int(getattr(consist, "venting_vehicle", 0))])
     return t_app_s + (0.0 * distance if simultaneous else distance / v_air_m_s)

@@ -1,6 +1,7 @@
 """A toy brake model: the block force ramps linearly to its target, with the paper's delays.
 
-The command reaches each vehicle as in Eq. 6 (t_app + distance / v_air); from then on the block
+The command reaches each vehicle as in Eq. 6 (t_app + distance from the venting vehicle / v_air,
+:func:`~.base.vent_delay_s`); from then on the block
 force moves towards level x full force at a constant rate, the full force in ``t_fill_s`` when
 applying and in ``t_release_s`` when releasing. Not validated against measurements: it shows
 what a second brake model needs (one file and one registry line) and gives contract tests a
@@ -14,7 +15,7 @@ import numpy as np
 
 from ..equations import jit
 from ..parameters import Fittable, parameter
-from .base import BrakeArrays, head_vent_delay_s, released_state
+from .base import BrakeArrays, released_state, vent_delay_s
 
 NAME = "linear_ramp"
 #: Registry id: selects this model's branch of the jitted dispatch.
@@ -31,7 +32,7 @@ class Params:
     Attributes
     ----------
     t_app_s : float
-        Delay between the command and the start of the ramp at the head [s].
+        Delay between the command and the start of the ramp at the venting vehicle [s].
     v_air_m_s : float
         Propagation speed of the command along the train (Eq. 6) [m/s].
     t_fill_s : float
@@ -56,7 +57,7 @@ class Params:
 #: Parameters calibration may fit, by short name.
 FITTABLE = {
     "t_app": Fittable("t_app_s", "s", 0.0, 5.0, 1.0,
-                      "delay from the command to the start of the ramp at the head"),
+                      "delay from the command to the start of the ramp at the venting vehicle"),
     "v_air": Fittable("v_air_m_s", "m/s", 100.0, 340.0, 200.0,
                       "propagation speed of the command along the train"),
     "t_fill": Fittable("t_fill_s", "s", 1.0, 30.0, 5.0,
@@ -80,7 +81,7 @@ def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  #
     BrakeArrays
         ``coef`` columns :data:`RATE_APPLY`, :data:`RATE_RELEASE` [N/s].
     """
-    delay = head_vent_delay_s(consist, params.t_app_s, params.v_air_m_s, params.simultaneous)
+    delay = vent_delay_s(consist, params.t_app_s, params.v_air_m_s, params.simultaneous)
     fmax = np.ascontiguousarray(force_max_N, float)
     coef = np.empty((fmax.size, 2))
     coef[:, RATE_APPLY] = fmax / params.t_fill_s

@@ -2,7 +2,8 @@
 
 Each vehicle's block force relaxes exponentially towards a piecewise-constant target, the level
 of the last command it has received times its full force. The command reaches vehicle i
-t_app + t_del,i after it was issued at the head (Eq. 6, t_del = distance / v_air). A rise follows
+t_app + t_del,i after it was issued (Eq. 6, t_del = distance from the venting vehicle / v_air,
+:func:`~.base.vent_delay_s`). A rise follows
 the filling time constant tau = t_fill / ln 20 (Eq. 7: 95 % after t_fill), a fall the release
 one. The relaxation is integrated exactly, so for an emergency application from rest this is
 Eq. 5, F = F_max (1 - exp(-(t - t_cmd - t_app - t_del) / tau)), for any step.
@@ -16,7 +17,7 @@ import numpy as np
 
 from ..equations import jit
 from ..parameters import Fittable, parameter
-from .base import BrakeArrays, EMERGENCY, head_vent_delay_s, released_state
+from .base import EMERGENCY, BrakeArrays, released_state, vent_delay_s
 
 NAME = "uic_empirical"
 #: Registry id: selects this model's branch of the jitted dispatch.
@@ -54,7 +55,7 @@ class Params:
     simultaneous : bool
         The command reaches every vehicle at once (t_del = 0 in Eq. 6), as with
         electronically controlled pneumatic brakes or radio distributed power; the paper's
-        model is for a brake pipe vented at the head only. Not validated.
+        model is for a brake pipe vented at one vehicle only. Not validated.
     """
 
     t_app_s: float = parameter(1.0, "delay between command and brake-cylinder pressure rise [s]",
@@ -88,7 +89,7 @@ class Params:
 #: Parameters calibration may fit, by short name.
 FITTABLE = {
     "t_app": Fittable("t_app_s", "s", 0.0, 5.0, 1.0,
-                      "delay from the command to the pressure rise at the head"),
+                      "delay from the command to the pressure rise at the venting vehicle"),
     "v_air": Fittable("v_air_m_s", "m/s", 100.0, 340.0, 200.0,
                       "propagation speed of the brake-pipe pressure drop (Eq. 6)"),
     "t_fill": Fittable("t_fill_s", "s", 2.0, 30.0, 5.0,
@@ -102,7 +103,7 @@ def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  #
     Parameters
     ----------
     consist : Consist
-        The train, head first (vehicle lengths and brake positions).
+        The train, head first (vehicle lengths, venting vehicle and brake positions).
     params : Params
     force_max_N : ndarray
         Full block force of each vehicle [N] (zeros: brakes switched off).
@@ -113,7 +114,7 @@ def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  #
         ``coef`` columns :data:`TAU_EMERGENCY`, :data:`TAU_SERVICE`, :data:`TAU_RELEASE`.
     """
     vs = consist.vehicles
-    delay = head_vent_delay_s(consist, params.t_app_s, params.v_air_m_s, params.simultaneous)
+    delay = vent_delay_s(consist, params.t_app_s, params.v_air_m_s, params.simultaneous)
     # brake position: G fills (and releases) slower; service applications scale alike
     in_g = np.array([v.brake_position == "G" for v in vs])
     fill = np.where(in_g, params.t_fill_G_s, params.t_fill_s)
