@@ -40,6 +40,7 @@ from .physics.constants import KMH_PER_MS, STANDSTILL_M_S
 from .physics.equations import (centre_offsets_m, curve_resistance_N_per_kN,
                                 train_braked_weight_percent)
 from .physics.kernel import Stats  # noqa: F401 (part of this module's interface)
+from .verdicts import TrainLimits, Verdicts, Watch, adhesion_demand_at_rest, train_limits
 
 
 class SimulationError(RuntimeError):
@@ -91,7 +92,10 @@ class Event:
     time_s : float
         Simulated time [s].
     kind : str
-        ``brake_applied``, ``brake_released``, ``stopped`` or ``coupler_out_of_lut``.
+        ``brake_applied``, ``brake_released``, ``stopped``, ``coupler_out_of_lut`` or
+        ``limit_exceeded`` (a coupler or vehicle first beyond a limit of
+        :mod:`~ltd_brake_ros.verdicts`: ``criterion``, ``coupler`` or ``vehicle``, the force or
+        demand, the limit, ``speed_kmh``).
     detail : dict
         Kind-specific values (units in the keys).
     """
@@ -110,6 +114,13 @@ class Event:
             return (f"t = {self.time_s:.2f} s: coupler {d['coupler']} left the coupler table, "
                     f"{d['beyond_table_mm']:.1f} mm beyond its end within the chunk; forces "
                     "there are extrapolated with the end slopes")
+        if self.kind == "limit_exceeded":
+            element = "coupler" if "coupler" in d else "vehicle"
+            what = (f"{d['force_kN']:.0f} kN, limit {d['limit_kN']:.0f} kN" if "force_kN" in d
+                    else f"demand {d['demand']:.3f}, limit {d['limit']:.3f}")
+            return (f"t = {self.time_s:.2f} s: {element} {d[element]} beyond its "
+                    f"{d['criterion'].replace('_', ' ')} limit ({what}) at "
+                    f"{d['speed_kmh']:.1f} km/h")
         return f"t = {self.time_s:.2f} s: {self.kind.replace('_', ' ')}"
 
 
@@ -313,10 +324,14 @@ class SimulatorState:
         Time of the brake command the stopping distance counts from [s].
     command_head_m : float
         Head displacement at that command [m].
+    command_speed_m_s : float
+        Head speed at that command [m/s].
     stop_time_s, stopping_distance_m : float or None
         When the train stopped [s] and the head's travel since the command [m].
     failed : bool
         A step failed; only a reset recovers.
+    watch : Watch or None
+        Follows the verdicts' limits (:mod:`~ltd_brake_ros.verdicts`).
     """
 
     time_s: float
@@ -334,13 +349,16 @@ class SimulatorState:
     stop_time_s: float | None = None
     stopping_distance_m: float | None = None
     failed: bool = False
+    command_speed_m_s: float = 0.0
+    watch: Watch | None = None
 
     def copy(self) -> "SimulatorState":
         """An independent copy (arrays copied)."""
         return dataclasses.replace(
             self, kinematics=self.kinematics.copy(), brakes=self.brakes.copy(),
             events=self.events.copy(), stats=self.stats.copy(),
-            reported_out_of_range=self.reported_out_of_range.copy())
+            reported_out_of_range=self.reported_out_of_range.copy(),
+            watch=None if self.watch is None else self.watch.copy())
 
 
 class Simulator:
@@ -385,6 +403,10 @@ class Simulator:
     fext_N : ndarray
         Additional external force on each vehicle, forward positive [N]; an input that may be
         changed between chunks.
+    limits : TrainLimits
+        Strength and adhesion limits of the train (consist ``limits``, the coupler model's,
+        the standard defaults: :func:`~ltd_brake_ros.verdicts.train_limits`); an event is
+        raised when one is first exceeded, :meth:`verdicts` tells all.
     """
 
     def __init__(self, consist: Consist, speed_kmh: float, params: BrakeParams | None = None,
@@ -421,6 +443,8 @@ class Simulator:
             0.0, 0.0, kernel.KinematicState.initial(n, self.speed_kmh / KMH_PER_MS),
             self._brake_model.initial_state(self.model.brakes), brakes_module.CommandEvents.empty(),
             kernel.new_stats(), np.zeros(nc, bool))
+        self.limits: TrainLimits = train_limits(consist, lut)
+        self._initial.watch = Watch(self.limits)
         self.reset()
 
     @staticmethod
@@ -508,6 +532,13 @@ class Simulator:
     def command_time_s(self) -> float | None:
         """Time of the brake command the stopping distance counts from [s] (None: none)."""
         return self._state.command_time_s
+
+    @property
+    def command_speed_kmh(self) -> float | None:
+        """Head speed at the brake command the stopping distance counts from [km/h] (None:
+        none)."""
+        st = self._state
+        return None if st.command_time_s is None else st.command_speed_m_s * KMH_PER_MS
 
     @property
     def stop_time_s(self) -> float | None:
@@ -601,6 +632,20 @@ class Simulator:
         return CouplerExcursions.from_arrays(k.beyond_range_m[:nc], k.beyond_range_time_s[:nc],
                                              k.out_of_range_time_s[:nc], worst)
 
+    def verdicts(self, limits: TrainLimits | None = None) -> Verdicts:
+        """Strength and adhesion verdicts since the last reset (:mod:`~ltd_brake_ros.verdicts`).
+
+        Parameters
+        ----------
+        limits : TrainLimits, optional
+            Judge by other limits (default :attr:`limits`).
+
+        Returns
+        -------
+        Verdicts
+        """
+        return self._state.watch.verdicts(self._state.kinematics, limits)
+
     def braked_weight_percent(self) -> float:
         """Train braked-weight percentage lambda_train, Eq. 11 [%]."""
         return train_braked_weight_percent([v.braked_weight_t for v in self.consist.vehicles],
@@ -644,6 +689,7 @@ class Simulator:
             # the stopping distance counts from the brake command that leads to the stop
             st.command_time_s = st.time_s
             st.command_head_m = float(st.kinematics.x_m[0])
+            st.command_speed_m_s = float(st.kinematics.v_m_s[0])
         if commands.emergency and not st.emergency:
             st.emergency = True
             events.append(Event(st.time_s, "brake_applied"))
@@ -685,6 +731,7 @@ class Simulator:
         if st.failed:
             raise SimulationError("the simulator stopped after a failed step; call reset()")
         events: list[Event] = []
+        t0, v0 = st.time_s, float(st.kinematics.v_m_s[0])
         if commands is not None:
             self._apply_commands(commands, events)
         nsteps = max(1, math.ceil(duration_s / self.step_s - 1e-9))
@@ -723,7 +770,15 @@ class Simulator:
                 events.append(Event(st.time_s, "stopped", {
                     "stopping_distance_m": st.stopping_distance_m,
                     "stop_time_s": st.time_s - st.command_time_s}))
+                if self._brakes:  # the adhesion demand peaks as the wheels come to rest
+                    events += [Event(t, "limit_exceeded", d) for t, d in st.watch.at_rest(
+                        st.time_s, adhesion_demand_at_rest(self.model.friction,
+                                                           st.brakes.force_N,
+                                                           st.watch.limits.weight_N))]
         self._report_out_of_range(events)
+        k = st.kinematics
+        events += [Event(t, "limit_exceeded", d) for t, d in st.watch.check(
+            t0, v0, st.time_s, float(k.v_m_s[0]), k, k.v_m_s, k.brake_force_N)]
         return self.snapshot(tuple(events))
 
     def _report_out_of_range(self, events: list) -> None:

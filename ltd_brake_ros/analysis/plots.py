@@ -18,7 +18,8 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
     """Write the engineer's plots as PNG files.
 
     ``speed.png`` (head and tail speed), ``brake_force.png`` (first wagon and tail, as the
-    paper's Fig. 7), ``coupler_peaks.png`` (peak draft and buff per coupler, Fig. 6) and
+    paper's Fig. 7), ``coupler_peaks.png`` (peak draft and buff per coupler, Fig. 6, with the
+    verdicts' strength limits where the peaks come within half of them) and
     ``coupler_force_map.png`` (coupler x time, diverging colours centred at zero, draft red).
 
     Parameters
@@ -95,6 +96,7 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
     ax.bar(j, report.coupler_peak_buff_N / 1e3, color="tab:blue",
            label="peak buff (compression)")
     ax.axhline(0.0, color="k", lw=0.8)
+    _limit_lines(ax, report, j)
     ax.set_xlabel("coupler (1 = behind the head)")
     ax.set_ylabel("coupler force [kN]  (draft +, buff -)")
     ax.set_title(f"Peak coupler forces along the train {title}".strip())
@@ -120,3 +122,21 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
     save(fig, "coupler_force_map.png")
     report.plots = paths
     return paths
+
+
+def _limit_lines(ax, report: RunReport, couplers: np.ndarray) -> None:
+    """Per-coupler limits of the verdicts as steps, where the peaks reach half of them (a
+    line far beyond the bars would flatten them)."""
+    lim = report.limits
+    if lim is None or lim.draft_strength_N.size != couplers.size or not couplers.size:
+        return
+    draft = float(report.coupler_peak_draft_N.max())
+    buff = float(-report.coupler_peak_buff_N.min())
+    for values, peak, sign, label, style in (
+            (lim.draft_strength_N, draft, 1.0, "draft strength", "-"),
+            (lim.buff_strength_N, buff, -1.0, "buff strength", "-"),
+            (lim.endurable_lcf_N, buff, -1.0, "endurable compressive force", "--")):
+        finite = np.isfinite(values)
+        if finite.any() and peak >= 0.5 * float(values[finite].min()):
+            ax.step(couplers, sign * np.where(finite, values, np.nan) / 1e3, where="mid",
+                    color="k", ls=style, lw=1, label=label)

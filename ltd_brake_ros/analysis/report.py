@@ -17,7 +17,7 @@ Topics used (any namespace; the first one holding ``vehicles/speed`` is analysed
 ==============================  ===========================================================
 
 Definitions: the emergency command is the first ``brake_command`` that is true (its record
-time); the train has stopped at the first recorded ``vehicles/speed`` sample at or after the
+time), and the speed at it the head's, interpolated between samples; the train has stopped at the first recorded ``vehicles/speed`` sample at or after the
 command in which every vehicle is at most ``STANDSTILL_M_S`` (1 mm/s, as the simulator
 counts a stop); the stopping distance is the head's
 position then minus its position at the command (interpolated between samples). Peak forces
@@ -27,6 +27,12 @@ Samples are read in log-time order and checked (:mod:`.samples`): a plant topic 
 type, a payload that does not decode, a non-finite value, arrays that do not describe one train
 or run information at odds with them end in :class:`~ltd_brake_ros.recording.reader.BagError`,
 never in a report of part of the data.
+
+Verdicts (:mod:`ltd_brake_ros.verdicts`) judge the recorded peaks by the limits in the run
+information (``limits``, stored by the recorder); without them, the coupler criteria use the
+standard defaults and adhesion is not assessed (the vehicle masses are unknown). The adhesion
+demand is the largest recorded brake force / weight of each vehicle: sampled at the recorded
+instants, it can fall short of the simulator's, which also takes it as the wheels come to rest.
 
 The file is streamed: time series of the head and tail (a few numbers per sample) are kept,
 the coupler heat map is reduced on the fly to at most a few thousand time bins (each holding
@@ -39,9 +45,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..physics.constants import STANDSTILL_M_S
+from ..physics.constants import KMH_PER_MS, STANDSTILL_M_S
 from ..recording.reader import BagError, bag_info
 from ..simulator import CouplerPeaks
+from ..verdicts import (CRITERIA, TrainLimits, Verdicts, default_coupler_limits, judge,
+                        limits_from_metadata)
 from .samples import BRAKE_COMMAND, plant_samples
 
 __all__ = ["RunReport", "analyse"]
@@ -153,6 +161,8 @@ class RunReport:
         First and last recorded sample.
     command_time_s : float or None
         First emergency command.
+    command_speed_kmh : float or None
+        Head speed at it [km/h].
     stop_time_s : float or None
         When the train stood still (see the module notes).
     stopping_time_s, stopping_distance_m : float or None
@@ -172,6 +182,10 @@ class RunReport:
         Vehicle index (0 = head) of the "head wagon" plotted.
     heat_t0_s, heat_t1_s, heat_force_N : ndarray
         Coupler-force heat map: time span of each bin, and (bins x couplers) forces.
+    limits : TrainLimits or None
+        The limits the verdicts judge by.
+    verdicts : Verdicts or None
+        Strength and adhesion verdicts (None: no vehicle speeds recorded).
     """
 
     source: str
@@ -184,6 +198,7 @@ class RunReport:
     start_time_s: float = 0.0
     end_time_s: float = 0.0
     command_time_s: float | None = None
+    command_speed_kmh: float | None = None
     stop_time_s: float | None = None
     stopping_time_s: float | None = None
     stopping_distance_m: float | None = None
@@ -207,12 +222,15 @@ class RunReport:
     heat_t0_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     heat_t1_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     heat_force_N: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    limits: TrainLimits | None = None
+    verdicts: Verdicts | None = None
     plots: list = field(default_factory=list)
 
     def as_dict(self) -> dict:
         """Scalars, consist summary and per-coupler peaks, JSON-serialisable."""
         keys = ("source", "namespace", "complete", "n_vehicles", "n_couplers", "start_time_s",
-                "end_time_s", "command_time_s", "stop_time_s", "stopping_time_s",
+                "end_time_s", "command_time_s", "command_speed_kmh", "stop_time_s",
+                "stopping_time_s",
                 "stopping_distance_m", "peak_draft_kN", "peak_draft_coupler",
                 "peak_draft_time_s", "peak_buff_kN", "peak_buff_coupler", "peak_buff_time_s")
         out = {k: getattr(self, k) for k in keys}
@@ -224,6 +242,7 @@ class RunReport:
             "peak_draft_time_s": self.coupler_peak_draft_time_s.tolist(),
             "peak_buff_N": self.coupler_peak_buff_N.tolist(),
             "peak_buff_time_s": self.coupler_peak_buff_time_s.tolist()}
+        out["verdicts"] = None if self.verdicts is None else self.verdicts.as_dict()
         out["sign_convention"] = _SIGN
         out["plots"] = [str(p) for p in self.plots]
         return out
@@ -253,13 +272,15 @@ class RunReport:
         if self.command_time_s is None:
             lines.append("Emergency command: none recorded")
         else:
-            lines.append(f"Emergency command: t = {self.command_time_s:.2f} s")
+            speed = "" if self.command_speed_kmh is None else \
+                f" at {self.command_speed_kmh:.2f} km/h"
+            lines.append(f"Emergency command: t = {self.command_time_s:.2f} s{speed}")
         if self.stop_time_s is None:
             if self.command_time_s is not None:
                 lines.append("Stop: the train had not stopped when the recording ended")
         else:
-            lines.append(f"Stopped: t = {self.stop_time_s:.2f} s; stopping distance "
-                         f"{self.stopping_distance_m:.1f} m, stopping time "
+            lines.append(f"Stopped: t = {self.stop_time_s:.2f} s; from the command: stopping "
+                         f"distance {self.stopping_distance_m:.1f} m, stopping time "
                          f"{self.stopping_time_s:.2f} s")
         if self.n_couplers:
             lines.append(f"Peak draft: {self.peak_draft_kN:.1f} kN at coupler "
@@ -267,6 +288,9 @@ class RunReport:
             lines.append(f"Peak buff: {self.peak_buff_kN:.1f} kN at coupler "
                          f"{self.peak_buff_coupler} (t = {self.peak_buff_time_s:.2f} s)")
             lines.append(f"Sign convention: {_SIGN}")
+        if self.verdicts is not None:
+            lines.append(f"Verdicts: {'PASS' if self.verdicts.passed else 'FAIL'}")
+            lines += [f"  {line}" for line in self.verdicts.describe()]
         for p in self.plots:
             lines.append(f"Plot: {p}")
         return "\n".join(lines)
@@ -321,6 +345,7 @@ def analyse(path, namespace: str | None = None) -> RunReport:
     """
     info = bag_info(path)
     ns = _find_namespace(path, info.topics, namespace)
+    watch = None  # verdict tracking, once the train's size is known
     speed = _Series("t", "head", "tail", "vmax")
     pos = _Series("t", "head")
     brake = _Series("t", "head", "tail")
@@ -333,12 +358,17 @@ def analyse(path, namespace: str | None = None) -> RunReport:
         if name == "vehicles/speed":
             n_vehicles = value.size
             speed.add(t, value[0], value[-1], float(np.abs(value).max()))
+            if watch is None:
+                watch = _Watch(info.metadata, n_vehicles)
+            watch.speed = value
         elif name == "vehicles/position":
             pos.add(t, value[0])
         elif name == "vehicles/brake_force":
             if head_wagon is None:
                 head_wagon = 1 if value.size > 1 else 0
             brake.add(t, value[head_wagon], value[-1])
+            if watch is not None:
+                watch.brake(t, value)
         elif name == "couplers/force":
             if not value.size:
                 continue
@@ -354,6 +384,8 @@ def analyse(path, namespace: str | None = None) -> RunReport:
             buff[down] = value[down]
             buff_t[down] = t
             heat.add(t, value)
+            if watch is not None:
+                watch.couplers(t, value)
         elif name == BRAKE_COMMAND and command_t is None and value:
             command_t = t
     if not len(speed):
@@ -377,6 +409,8 @@ def analyse(path, namespace: str | None = None) -> RunReport:
                     head_speed_m_s=speed.np("head"), tail_speed_m_s=speed.np("tail"),
                     brake_time_s=brake.np("t"), head_wagon_brake_force_N=brake.np("head"),
                     tail_brake_force_N=brake.np("tail"), head_wagon_index=head_wagon or 0)
+    if command_t is not None and ts.size:
+        rep.command_speed_kmh = float(np.interp(command_t, ts, speed.np("head"))) * KMH_PER_MS
     if command_t is not None:
         after = np.flatnonzero((ts >= command_t - 1e-9) & (vmax <= STANDSTILL_M_S))
         if after.size:
@@ -397,7 +431,68 @@ def analyse(path, namespace: str | None = None) -> RunReport:
         rep.peak_buff_kN, rep.peak_buff_coupler = peaks.buff_N / 1e3, peaks.buff_coupler
         rep.peak_buff_time_s = peaks.buff_time_s
         rep.heat_t0_s, rep.heat_t1_s, rep.heat_force_N = heat.result()
+    if watch is not None and watch.fits(n_vehicles, rep.n_couplers):
+        head = speed.np("head")
+
+        def kmh(times):
+            return np.interp(times, ts, head) * KMH_PER_MS
+        rep.limits = watch.limits
+        rep.verdicts = judge(
+            watch.limits, peak_draft_N=rep.coupler_peak_draft_N,
+            peak_draft_time_s=rep.coupler_peak_draft_time_s,
+            draft_speed_kmh=kmh(rep.coupler_peak_draft_time_s),
+            peak_buff_N=rep.coupler_peak_buff_N, peak_buff_time_s=rep.coupler_peak_buff_time_s,
+            buff_speed_kmh=kmh(rep.coupler_peak_buff_time_s),
+            adhesion_demand=watch.adhesion, adhesion_time_s=watch.adhesion_time_s,
+            adhesion_speed_kmh=watch.adhesion_speed_kmh, first_time_s=watch.first_time_s)
     return rep
+
+
+class _Watch:
+    """Verdict tracking while the recording streams: first sample beyond each limit, and each
+    vehicle's largest brake force / weight."""
+
+    def __init__(self, metadata: dict, n_vehicles: int):
+        self.limits = limits_from_metadata(metadata.get("limits"), n_vehicles) or \
+            default_coupler_limits(n_vehicles)
+        n, nc = self.limits.adhesion_limit.size, self.limits.draft_strength_N.size
+        self.first_time_s = {name: np.full(n if name == "adhesion" else nc, -1.0)
+                             for name in CRITERIA}
+        self.adhesion = np.zeros(n)
+        self.adhesion_time_s = np.zeros(n)
+        self.adhesion_speed_kmh = np.zeros(n)
+        self.speed = None
+
+    def fits(self, n_vehicles: int, n_couplers: int) -> bool:
+        """The limits are those of a train of this size (the arrays never changed size)."""
+        return self.limits.draft_strength_N.size == n_couplers and \
+            self.limits.adhesion_limit.size in (0, n_vehicles)
+
+    def _first(self, name: str, t: float, over: np.ndarray) -> None:
+        first = self.first_time_s[name]
+        if over.shape == first.shape:
+            first[over & (first < 0.0)] = t
+
+    def couplers(self, t: float, force: np.ndarray) -> None:
+        lim = self.limits
+        if force.shape != lim.draft_strength_N.shape:
+            return
+        self._first("draft_strength", t, force > lim.draft_strength_N)
+        self._first("buff_strength", t, -force > lim.buff_strength_N)
+        self._first("endurable_lcf", t, -force > lim.endurable_lcf_N)
+
+    def brake(self, t: float, force: np.ndarray) -> None:
+        lim = self.limits
+        if force.shape != lim.weight_N.shape:
+            return
+        demand = np.abs(force) / lim.weight_N
+        up = demand > self.adhesion
+        if up.any():
+            self.adhesion[up] = demand[up]
+            self.adhesion_time_s[up] = t
+            if self.speed is not None and self.speed.shape == demand.shape:
+                self.adhesion_speed_kmh[up] = np.abs(self.speed[up]) * KMH_PER_MS
+        self._first("adhesion", t, demand > lim.adhesion_limit)
 
 
 def _head_position(tp, xp, ts, vs, t: float) -> float:

@@ -13,8 +13,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "simulate", help="one emergency stop: distance, time, peak coupler forces",
         description="Apply the emergency brake at t = 0 and integrate until the train stands "
-                    "still. Prints lambda_train (Eq. 11), the stopping distance and time, the "
-                    "peak draft and buff forces with their coupler numbers, and the cost.",
+                    "still. Prints lambda_train (Eq. 11), the speed at the brake command, the "
+                    "stopping distance and time from it, the peak draft and buff forces with "
+                    "their coupler numbers, the strength and adhesion verdicts and the cost.",
         epilog=CONVENTIONS + "\nexamples:\n  ltd-brake simulate --scenario 6\n"
                "  ltd-brake simulate --consist my_train.yaml --speed-kmh 80 --json\n",
         formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -27,9 +28,18 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
+#: Simulated time per chunk of an emergency stop [s], and when to give up if the train has not
+#: stopped [s] (as :func:`~ltd_brake_ros.studies.runs.emergency_stop`).
+CHUNK_S, MAX_TIME_S = 1.0, 600.0
+
+
 def run(args: argparse.Namespace) -> int:
     """Run one emergency stop (or the ``--commands`` script) and print its summary."""
-    from ..studies.runs import emergency_stop
+    import time
+
+    from ..inputs import CommandScript
+    from ..simulator import SimulationError
+    from ..studies.runs import scripted_run, summarize
 
     if args.scenario is None and args.consist is None:
         raise InputError("command line", "--scenario/--consist",
@@ -39,29 +49,48 @@ def run(args: argparse.Namespace) -> int:
         return _run_script(args, spec)
     params, lut = spec.params, spec.lut
     events = []
+    # the emergency stop as a one-command script, so that the simulator (and its verdicts)
+    # outlives the run; the chunks are those of emergency_stop, and so are the results
+    start = time.perf_counter()
     with _Progress() as progress:
-        res = emergency_stop(spec.consist, spec.speed_kmh, params, lut, spec.track,
-                             step_s=args.step_s, on_chunk=lambda s: events.extend(s.events),
-                             progress=progress)
+        sim = scripted_run(spec.consist, spec.speed_kmh,
+                           CommandScript(((0.0, {"emergency": True}),)), params, lut,
+                           spec.track, step_s=args.step_s,
+                           chunk_s=CHUNK_S, max_time_s=MAX_TIME_S,
+                           on_chunk=lambda s: events.extend(s.events), progress=progress)
+    if sim.stop_time_s is None:
+        raise SimulationError(f"the train had not stopped after {MAX_TIME_S:g} s")
+    res = summarize(sim, time.perf_counter() - start)
+    verdicts = sim.verdicts()
     lut_events = [e for e in events if e.kind == "coupler_out_of_lut"]
     if args.json:
         out = res.as_dict()
         out["params_file"] = params.source
         out["lut_file"] = lut.source
+        out["brake_command_time_s"] = sim.command_time_s
+        out["brake_command_speed_kmh"] = sim.command_speed_kmh
+        out["venting_vehicle"] = spec.consist.venting_vehicle
         out["couplers_out_of_lut"] = [dict(e.detail, time_s=e.time_s) for e in lut_events]
+        out["limits_exceeded"] = _limit_events(events)
+        out["verdicts"] = verdicts.as_dict()
         print(json.dumps(out, indent=2))
         return 0
     print(f"train            {res.consist}: {res.vehicles} vehicles, {res.train_length_m:.1f} m, "
           f"{res.train_mass_t:.0f} t")
     print(f"braked weight    lambda_train = {res.braked_weight_percent:.1f} % (Eq. 11)")
-    print(f"initial speed    {res.initial_speed_kmh:g} km/h, emergency brake at t = 0")
-    print(f"stopping         {res.stopping_distance_m:.1f} m in {res.stop_time_s:.2f} s")
+    print(f"initial speed    {res.initial_speed_kmh:g} km/h")
+    print(f"brake command    emergency at t = {sim.command_time_s:.2f} s, "
+          f"{sim.command_speed_kmh:.2f} km/h; brake pipe vented at vehicle "
+          f"{spec.consist.venting_vehicle}")
+    print(f"stopping         {res.stopping_distance_m:.1f} m in {res.stop_time_s:.2f} s from "
+          "the brake command")
     print(f"peak draft       {res.peak_draft_kN:.1f} kN at coupler {res.peak_draft_coupler} "
           f"(t = {res.peak_draft_time_s:.2f} s)")
     print(f"peak buff        {res.peak_buff_kN:.1f} kN at coupler {res.peak_buff_coupler} "
           f"(t = {res.peak_buff_time_s:.2f} s)")
     if res.out_of_range.count:
         print(f"warning          {res.out_of_range.describe()}")
+    _print_verdicts(verdicts)
     print(f"cost             {res.wall_time_s * 1e3:.0f} ms wall, {res.real_time_factor:.0f}x "
           f"real time, {res.steps} steps, {res.newton_iterations_per_step:.2f} Newton "
           "iterations per step")
@@ -91,6 +120,8 @@ def _run_script(args: argparse.Namespace, spec) -> int:
         "consist": spec.consist.name, "vehicles": spec.consist.n,
         "commands_file": script.source,
         "duration_s": sim.time_s, "final_speed_kmh": float(snap.speed_m_s[0]) * KMH_PER_MS,
+        "brake_command_time_s": sim.command_time_s,
+        "brake_command_speed_kmh": sim.command_speed_kmh,
         "distance_travelled_m": sim.distance_travelled_m,
         "stopping_distance_m": sim.stopping_distance_m,
         "stop_time_s": None if sim.stop_time_s is None else sim.stop_time_s - sim.command_time_s,
@@ -98,6 +129,7 @@ def _run_script(args: argparse.Namespace, spec) -> int:
         "peak_buff_kN": peaks.buff_N / 1e3, "peak_buff_coupler": peaks.buff_coupler,
         "events": [dict(e.detail, kind=e.kind, time_s=e.time_s) for e in events],
         "wall_time_s": wall, "real_time_factor": sim.time_s / wall if wall > 0 else None,
+        "verdicts": sim.verdicts().as_dict(),
     }
     if args.json:
         print(json.dumps(out, indent=2))
@@ -106,16 +138,34 @@ def _run_script(args: argparse.Namespace, spec) -> int:
           f"script {script.source}")
     print(f"ran              {sim.time_s:.1f} s, {out['distance_travelled_m']:.1f} m, final "
           f"speed {out['final_speed_kmh']:.1f} km/h")
+    if sim.command_time_s is not None:
+        print(f"brake command    t = {sim.command_time_s:.2f} s, {sim.command_speed_kmh:.2f} km/h"
+              + ("" if sim.stopping_distance_m is None else
+                 f"; stopped {sim.stopping_distance_m:.1f} m further"))
     for e in events:
-        if e.kind != "coupler_out_of_lut":
+        if e.kind not in ("coupler_out_of_lut", "limit_exceeded"):
             print(f"event            {e.describe()}")
     beyond = sim.coupler_excursions()
     if beyond.count:
         print(f"warning          {beyond.describe()}")
     print(f"peak draft       {out['peak_draft_kN']:.1f} kN at coupler {peaks.draft_coupler}")
     print(f"peak buff        {out['peak_buff_kN']:.1f} kN at coupler {peaks.buff_coupler}")
+    _print_verdicts(sim.verdicts())
     print(f"cost             {wall * 1e3:.0f} ms wall, {out['real_time_factor']:.0f}x real time")
     return 0
+
+
+def _limit_events(events) -> list[dict]:
+    """The ``limit_exceeded`` events of a run, as JSON."""
+    return [dict(e.detail, time_s=e.time_s) for e in events if e.kind == "limit_exceeded"]
+
+
+def _print_verdicts(verdicts) -> None:
+    """The verdicts table, one line per criterion and per coupler or vehicle beyond a limit."""
+    lines = verdicts.describe()
+    print(f"verdicts         {'PASS' if verdicts.passed else 'FAIL'}")
+    for line in lines:
+        print(f"  {line}")
 
 
 class _Progress:

@@ -9,25 +9,27 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import time
 
 import numpy as np
 import pyarrow as pa
 from scipy.special import ndtr, ndtri
 
+from .. import verdicts as verdicts_module
 from ..inputs import consist_from_mapping
 from ..inputs.campaign import Campaign, Distribution, fittable_parameters
 from ..inputs.commands import CommandScript
-from ..physics.brakes import friction
-from ..physics.constants import G
-from .runs import emergency_stop, scripted_run
+from ..simulator import SimulationError
+from .runs import scripted_run, summarize
 
 __all__ = ["KPI_FIELDS", "dimensions", "draw", "inverse_cdf", "models", "run_batch", "run_one",
            "schema_of"]
 
-#: Simulated time per chunk of an emergency stop [s] (as :func:`.runs.emergency_stop`).
-CHUNK_S = 1.0
+#: Simulated time per chunk of an emergency stop [s], and when to give up if the train has not
+#: stopped [s] (as :func:`.runs.emergency_stop`).
+CHUNK_S, MAX_TIME_S = 1.0, 600.0
 #: Command-update interval of service and traction runs [s]; their adhesion demand is
-#: sampled at these instants.
+#: sampled at these instants (and as the train comes to rest).
 SCRIPT_CHUNK_S = 0.5
 #: Stream numbers of ``default_rng([seed, run, stream])``.
 _RUN_STREAM, _WAGON_STREAM = 0, 1
@@ -285,33 +287,23 @@ def run_one(c: Campaign, run_id: int) -> list[dict]:
 
 
 def _simulate(c: Campaign, m, consist, speed_kmh: float, params, lut) -> dict:
-    """KPIs of one run of manoeuvre ``m``."""
-    weight_N = np.array([v.mass_kg for v in consist.vehicles]) * G
-    adhesion = {"value": 0.0, "vehicle": 0, "last": None}
-
-    def note(demand: np.ndarray) -> None:
-        i = int(np.argmax(demand))
-        if demand[i] > adhesion["value"]:
-            adhesion["value"], adhesion["vehicle"] = float(demand[i]), i + 1
-
-    def watch(snap) -> None:
-        note(snap.brake_force_N / weight_N)
-        adhesion["last"] = snap
-
+    """KPIs of one run of manoeuvre ``m``, and its verdicts by the campaign's limits."""
     if m.kind == "emergency":
-        r = emergency_stop(consist, speed_kmh, params, lut, step_s=c.step_s, chunk_s=CHUNK_S,
-                           on_chunk=watch)
+        # a one-command script, as emergency_stop runs it (same chunks, same results), so
+        # that the simulator's verdicts are at hand
+        start = time.perf_counter()
+        sim = scripted_run(consist, speed_kmh, CommandScript(((0.0, {"emergency": True}),)),
+                           params, lut, step_s=c.step_s, chunk_s=CHUNK_S,
+                           max_time_s=MAX_TIME_S)
+        if sim.stop_time_s is None:
+            raise SimulationError(f"the train had not stopped after {MAX_TIME_S:g} s")
+        r = summarize(sim, time.perf_counter() - start)
         out = {k: getattr(r, k) for k in (
             "train_mass_t", "train_length_m", "braked_weight_percent", "stopping_distance_m",
             "stop_time_s", "peak_draft_kN", "peak_draft_coupler", "peak_draft_time_s",
             "peak_buff_kN", "peak_buff_coupler", "peak_buff_time_s", "steps",
             "newton_iterations", "newton_iterations_per_step", "max_newton_iterations",
             "couplers_beyond_lut")}
-        # Under an emergency application the block force only rises (the brake-model
-        # contract) and Karwatzki's speed factor grows as the speed falls (Eq. 8), so every
-        # vehicle's brake force peaks just before standstill: its limit at v -> 0 with the
-        # block force at the stop (taken at the end of the last chunk, never smaller).
-        note(_standstill_brake_force_N(consist, params, adhesion["last"]) / weight_N)
     else:
         if m.kind == "service":
             steps = [(0.0, {"brake_demand": m.demand})]
@@ -320,8 +312,7 @@ def _simulate(c: Campaign, m, consist, speed_kmh: float, params, lut) -> dict:
         else:
             steps = [(0.0, {"traction": m.demand})]
         sim = scripted_run(consist, speed_kmh, CommandScript(tuple(steps), m.duration_s),
-                           params, lut, step_s=c.step_s, chunk_s=SCRIPT_CHUNK_S,
-                           on_chunk=watch)
+                           params, lut, step_s=c.step_s, chunk_s=SCRIPT_CHUNK_S)
         peaks = sim.coupler_peaks()
         stopped = sim.stopping_distance_m is not None
         out = {"train_mass_t": consist.mass_kg / 1e3, "train_length_m": consist.length_m,
@@ -336,21 +327,17 @@ def _simulate(c: Campaign, m, consist, speed_kmh: float, params, lut) -> dict:
                "newton_iterations_per_step": sim.newton_iterations / max(sim.steps, 1),
                "max_newton_iterations": sim.max_newton_iterations,
                "couplers_beyond_lut": sim.coupler_excursions().count}
-    out["max_adhesion_demand"] = adhesion["value"]
-    out["max_adhesion_vehicle"] = adhesion["vehicle"]
-    out["draft_ok"] = out["peak_draft_kN"] * 1e3 <= lut.draft_strength_N
-    out["buff_ok"] = -out["peak_buff_kN"] * 1e3 <= lut.buff_strength_N
-    out["adhesion_ok"] = adhesion["value"] <= c.adhesion_limit
+    # the verdicts by the coupler variant's strengths and the campaign's adhesion limit (the
+    # adhesion demand peaks as the train comes to rest: see ltd_brake_ros.verdicts)
+    verdicts = sim.verdicts(verdicts_module.train_limits(consist, lut,
+                                                         adhesion_limit=c.adhesion_limit))
+    adhesion = verdicts["adhesion"]
+    out["max_adhesion_demand"] = adhesion.worst_value
+    out["max_adhesion_vehicle"] = adhesion.worst_number + 1  # counted from 1 at the head
+    flags = verdicts_module.flags(verdicts)
+    for name in ("draft_ok", "buff_ok", "adhesion_ok"):
+        out[name] = flags[name]
     return out
-
-
-def _standstill_brake_force_N(consist, params, snap) -> np.ndarray:
-    """Each vehicle's brake force as its speed tends to 0 at the snapshot's block forces [N]."""
-    fr = friction.compile(consist, params.friction)
-    return np.array([friction.retarding_force(
-        fr.kind[i], 0.0, friction.force_scale(fr.kind[i], fr.blocks[i], fr.arrangement[i],
-                                              fr.mu_disc[i], snap.block_force_N[i]))[0]
-        for i in range(consist.n)])
 
 
 def run_batch(c: Campaign, batch: int) -> pa.Table:
