@@ -40,7 +40,7 @@ from typing import Any
 
 from .. import parameters
 from ..equations import jit
-from . import friction, linear_ramp, uic_empirical
+from . import friction, linear_ramp, uic_empirical, uic_pipe
 from .base import EMERGENCY, SERVICE, BrakeArrays, BrakeState, CommandEvents, CompileError
 
 __all__ = ["EMERGENCY", "SERVICE", "BrakeArrays", "BrakeState", "BrakeParams", "CommandEvents",
@@ -50,6 +50,7 @@ __all__ = ["EMERGENCY", "SERVICE", "BrakeArrays", "BrakeState", "BrakeParams", "
 MODELS = {m.NAME: m for m in (
     uic_empirical,
     linear_ramp,
+    uic_pipe,
 )}
 #: The model of a parameter file that names none: the paper's.
 DEFAULT_MODEL = uic_empirical.NAME
@@ -62,6 +63,8 @@ def advance(arrays, state, events, t0, t1):
         uic_empirical.advance(arrays, state, events, t0, t1)
     elif arrays.model == linear_ramp.ID:
         linear_ramp.advance(arrays, state, events, t0, t1)
+    elif arrays.model == uic_pipe.ID:
+        uic_pipe.advance(arrays, state, events, t0, t1)
 
 
 def model_of(params) -> Any:

@@ -1,0 +1,649 @@
+"""The UIC brake pipe and distributors, fluid-empirical: air flow in the pipe, valve characteristics.
+
+The brake pipe is a 1-D isothermal compressible flow along the train (continuity and momentum,
+the convective term neglected at the pipe's low Mach numbers), one finite volume per vehicle
+(its length over buffers, the pipe bore and the branch volume of its distributor), one face per
+hose coupling carrying the mass flow between two volumes with wall friction (laminar 64/Re,
+turbulent Blasius) and a concentrated loss per coupling. Both ends are closed. Branch flows leave
+or enter each volume: the driver's brake valve (feed valve from the main reservoir, relay vent,
+emergency orifice) at the venting vehicle, and at every braked vehicle the charging of its
+auxiliary reservoir, its quick-service chamber and its acceleration chamber (emergency
+accelerator). Orifices follow the isentropic law, choked below the critical ratio 0.528.
+
+Scheme. Each internal step (``pipe_step_s``) is backward Euler on a staggered grid with the
+friction and the branch flows linearised about the last step; eliminating the face flows leaves
+one tridiagonal system in the pressures (Thomas algorithm, O(n)). Backward Euler is unconditionally
+stable, so the step is not limited by the CFL condition of the sound speed nor by the stiff
+orifices (an emergency orifice on a 12 L volume has a time constant of milliseconds), and it is
+monotone: no oscillation near a front can fire a distributor or an accelerator early. It costs
+one tridiagonal solve per step, far less than the coupler mechanics. Its numerical diffusion is
+small at the default step (Courant number c dt / dx ~ 0.1); the propagation figures are
+measured with it (:mod:`ltd_brake_ros.studies.brake_pipe_validation`).
+
+Distributors (UIC 540 behaviour, measured characteristics rather than valve geometry): a control
+reservoir that follows the pipe through a choke while released (insensitivity to slow drops),
+application when the pipe is more than ``application_threshold`` below it, a one-shot
+quick-service chamber that draws air from the pipe at the start (application stroke), inshot
+(fast first filling up to ``inshot_pressure``), target cylinder pressure proportional to the
+pipe drop, 3.8 bar at 1.5 bar, with a play hysteresis between application and release
+(graduated application and release), P/G filling rates and release time constants, the
+auxiliary reservoir emptying polytropically into the cylinder, and an accelerator that vents
+the pipe locally when the pipe falls faster than its reference chamber can follow. Empty/loaded
+changes the full block force through the braked weight (Eq. 4), not the cylinder pressure.
+Block force = full block force x cylinder pressure / maximum cylinder pressure.
+
+Time grid. The model advances on a fixed global grid t_k = k * pipe_step_s; a command issued at t
+acts from the first grid point at or after t, and the block forces held between grid points are
+those of the last grid point reached. ``advance(t0, t1)`` steps from the stored grid point to
+the last one at or before t1, so any split of [t0, t1] gives bit-identical results, and no step
+uses a command issued after its start (causal).
+
+``delay_s`` is the earliest a pressure change from the venting vehicle can reach each vehicle:
+distance / isothermal sound speed. No distributor responds before it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..equations import centre_offsets_m, jit
+from ..parameters import Fittable, parameter
+from .base import EMERGENCY, BrakeArrays, BrakeState
+
+NAME = "uic_brake_pipe"
+#: Registry id: selects this model's branch of the jitted dispatch.
+ID = 2
+
+P_ATM = 101325.0  # [Pa]
+R_AIR = 287.05  # specific gas constant of air [J/(kg K)]
+_CRITICAL = 0.528  # critical pressure ratio of air (kappa = 1.4)
+_LAMINAR = 0.995  # above this pressure ratio the orifice law is linear (finite derivative)
+_C_CHOKED = math.sqrt(1.4) * (2.0 / 2.4) ** (2.4 / 0.8)  # sqrt(k) (2/(k+1))^((k+1)/(2(k-1)))
+_GRID_TOL = 1e-6  # grid points within this fraction of a step count as reached
+
+# ---- columns of BrakeArrays.coef: per vehicle
+C_CAP = 0  # capacitance of the vehicle's volume, V / (R T) [kg/Pa]
+C_DX = 1  # distance to the next vehicle's centre (face i, i + 1) [m]
+C_DISTRIBUTOR = 2  # 1: the vehicle has a distributor
+C_FILL_RATE = 3  # filling rate of the cylinder after inshot (P or G) [Pa/s]
+C_LAP_TAU = 4  # time constant of the approach to the target pressure [s]
+C_RELEASE_TAU = 5  # time constant of the release [s]
+# ---- scalars (the same in every row)
+S_DT, S_AREA, S_DIAM, S_HOSE_K, S_MU, S_RT = 6, 7, 8, 9, 10, 11
+S_P_RUN, S_P_MR, S_A_FEED, S_A_VENT, S_A_EMERG, S_BAND = 12, 13, 14, 15, 16, 17
+S_FIRST_STEP, S_FULL_SERVICE, S_ER_DOWN, S_ER_UP, S_VENT = 18, 19, 20, 21, 22
+S_THETA_APP, S_CR_TAU, S_P_CMAX, S_DP_FULL, S_HYST, S_THETA_REL = 23, 24, 25, 26, 27, 28
+S_P_INSHOT, S_INSHOT_RATE, S_A_AUX, S_V_AUX, S_V_CYL, S_N_POLY = 29, 30, 31, 32, 33, 34
+S_A_QS, S_V_QS, S_ACC_ON, S_ACC_THETA, S_ACC_TAU, S_A_ACC, S_ACC_CLOSE = (35, 36, 37, 38, 39,
+                                                                           40, 41)
+S_SUPPLY_BAND = 42
+N_COEF = 43
+
+# ---- columns of BrakeState.extra
+X_P = 0  # pipe pressure, absolute [Pa]
+X_M = 1  # mass flow from vehicle i to i + 1 [kg/s]
+X_CR = 2  # control reservoir, absolute [Pa]
+X_AUX = 3  # auxiliary reservoir, absolute [Pa]
+X_CYL = 4  # brake cylinder, gauge [Pa]
+X_TARGET = 5  # target cylinder pressure of the distributor, gauge [Pa]
+X_APPLIED = 6  # 1: the distributor is in application
+X_REF = 7  # accelerator reference chamber, absolute [Pa]
+X_ACC = 8  # accelerator: 0 armed, 1 venting, 2 spent
+X_QS = 9  # quick-service chamber, absolute [Pa]
+X_QS_STATE = 10  # quick service: 0 armed, 1 drawing, 2 done
+X_GRID = 11  # row 0: index of the grid point reached (-1: none yet)
+X_ER = 12  # row 0: equalising reservoir of the driver's brake valve, absolute [Pa]
+N_EXTRA = 13
+
+# driver's brake valve positions
+_RELEASE, _SERVICE, _EMERGENCY = 0, 1, 2
+
+BAR = 1e5
+
+
+@dataclass(frozen=True)
+class Params:
+    """Parameters of the UIC brake pipe and distributors (file keys in bar where so named).
+
+    Sources: UIC 540 (distributor performance: 5 bar running pressure, 3.8 bar maximum
+    cylinder pressure at a 1.5 bar pipe drop, P and G filling 3-5 s and 18-30 s, release
+    15-20 s and 45-60 s, sensitivity and insensitivity), UIC 541-03 (driver's brake valve,
+    first step, full service), the brake-pipe models of Cantone et al. (2009), Proc. IMechE F
+    223:305 and Wu et al. (2021), Veh. Syst. Dyn. 59:1445 (pipe bore, hose losses, isothermal
+    flow). Values marked "fitted" were chosen so that the model meets the UIC 540 windows and
+    propagation speeds printed by ``ltd-brake validate --brake-pipe``.
+    """
+
+    # --- pipe
+    pipe_diameter_m: float = parameter(0.032, "brake-pipe bore (1 1/4 in pipe, Cantone 2009) [m]",
+                                       lo=0.01, hi=0.1)
+    branch_volume_m3: float = parameter(0.003, "volume of each vehicle's distributor branch and "
+                                        "dirt collector (fitted) [m3]", lo=0.0, hi=0.05)
+    hose_loss_coefficient: float = parameter(10.0, "concentrated loss coefficient of a hose "
+                                             "coupling with its cocks (fitted) [-]", lo=0.0,
+                                             hi=50.0)
+    air_temperature_K: float = parameter(288.0, "air temperature, isothermal pipe [K]",
+                                         lo=200.0, hi=350.0)
+    air_viscosity_Pa_s: float = parameter(1.8e-5, "dynamic viscosity of air [Pa s]",
+                                          lo=1e-6, hi=1e-4)
+    pipe_step_s: float = parameter(0.005, "internal step of the pipe on its fixed time grid "
+                                   "(numerical) [s]", lo=1e-4, hi=0.05)
+    # --- driver's brake valve
+    running_pressure_Pa: float = parameter(5.0 * BAR, "brake-pipe running pressure (UIC 540) "
+                                           "[bar]", key="running_pressure_bar", scale=BAR,
+                                           lo=3.0, hi=7.0)
+    main_reservoir_pressure_Pa: float = parameter(9.0 * BAR, "main reservoir feeding the pipe "
+                                                  "(8-10 bar typical) [bar]",
+                                                  key="main_reservoir_pressure_bar", scale=BAR,
+                                                  lo=5.0, hi=12.0)
+    feed_area_m2: float = parameter(1.5e-4, "effective area of the feed/relay valve from the "
+                                    "main reservoir (fitted) [m2]", lo=1e-6, hi=1e-2)
+    service_vent_area_m2: float = parameter(1.5e-4, "effective area of the relay valve's vent "
+                                            "(fitted) [m2]", lo=1e-6, hi=1e-2)
+    emergency_area_m2: float = parameter(5e-4, "effective area of the emergency position's "
+                                         "orifice (1 1/4 in bore, fitted) [m2]", lo=1e-6,
+                                         hi=1e-2)
+    relay_band_Pa: float = parameter(0.05 * BAR, "pressure error that opens the relay valve "
+                                     "fully (fitted) [bar]", key="relay_band_bar", scale=BAR,
+                                     lo=0.001, hi=1.0)
+    first_step_Pa: float = parameter(0.45 * BAR, "pipe reduction of the first service step "
+                                     "(UIC 541-03: 0.4-0.5 bar) [bar]", key="first_step_bar",
+                                     scale=BAR, lo=0.1, hi=1.5)
+    full_service_Pa: float = parameter(1.5 * BAR, "pipe reduction of a full service "
+                                       "application (UIC 540) [bar]", key="full_service_bar",
+                                       scale=BAR, lo=0.5, hi=3.0)
+    equalising_rate_down_Pa_s: float = parameter(0.4 * BAR, "rate at which the equalising "
+                                                 "reservoir falls in service (fitted) [bar/s]",
+                                                 key="equalising_rate_down_bar_s", scale=BAR,
+                                                 lo=0.01, lo_open=True, hi=10.0)
+    equalising_rate_up_Pa_s: float = parameter(2.0 * BAR, "rate at which the equalising "
+                                               "reservoir rises on release (fitted) [bar/s]",
+                                               key="equalising_rate_up_bar_s", scale=BAR,
+                                               lo=0.01, lo_open=True, hi=20.0)
+    # --- distributor
+    application_threshold_Pa: float = parameter(0.3 * BAR, "pipe drop below the control "
+                                                "reservoir that starts an application (UIC "
+                                                "540 sensitivity, fitted) [bar]",
+                                                key="application_threshold_bar", scale=BAR,
+                                                lo=0.01, hi=1.0)
+    control_time_constant_s: float = parameter(40.0, "time constant of the control reservoir "
+                                               "following the pipe (insensitivity: 0.3 bar in "
+                                               "60 s does not brake, UIC 540; fitted) [s]",
+                                               lo=0.5, hi=200.0)
+    max_cylinder_pressure_Pa: float = parameter(3.8 * BAR, "maximum brake-cylinder pressure "
+                                                "(UIC 540) [bar]",
+                                                key="max_cylinder_pressure_bar", scale=BAR,
+                                                lo=1.0, hi=6.0)
+    full_application_drop_Pa: float = parameter(1.5 * BAR, "pipe drop giving the maximum "
+                                                "cylinder pressure (UIC 540) [bar]",
+                                                key="full_application_drop_bar", scale=BAR,
+                                                lo=0.5, hi=3.0)
+    hysteresis_Pa: float = parameter(0.1 * BAR, "pipe rise needed before a graduated release "
+                                     "step (fitted) [bar]", key="hysteresis_bar", scale=BAR,
+                                     lo=0.0, hi=1.0)
+    release_threshold_Pa: float = parameter(0.15 * BAR, "pipe drop below which the distributor "
+                                            "releases fully (fitted) [bar]",
+                                            key="release_threshold_bar", scale=BAR,
+                                            lo=0.0, hi=1.0)
+    inshot_pressure_Pa: float = parameter(0.6 * BAR, "cylinder pressure reached at the inshot "
+                                          "rate (fitted) [bar]", key="inshot_pressure_bar",
+                                          scale=BAR, lo=0.0, hi=2.0)
+    inshot_rate_Pa_s: float = parameter(3.0 * BAR, "cylinder filling rate during inshot "
+                                        "(fitted) [bar/s]", key="inshot_rate_bar_s", scale=BAR,
+                                        lo=0.01, lo_open=True, hi=50.0)
+    fill_rate_P_Pa_s: float = parameter(0.9 * BAR, "cylinder filling rate after inshot in P "
+                                        "(fitted to UIC 540 P filling 3-5 s) [bar/s]",
+                                        key="fill_rate_P_bar_s", scale=BAR, lo=0.01,
+                                        lo_open=True, hi=50.0)
+    fill_rate_G_Pa_s: float = parameter(0.14 * BAR, "cylinder filling rate after inshot in G "
+                                        "(fitted to UIC 540 G filling 18-30 s) [bar/s]",
+                                        key="fill_rate_G_bar_s", scale=BAR, lo=0.001,
+                                        lo_open=True, hi=50.0)
+    lap_time_constant_P_s: float = parameter(0.4, "time constant of the final approach to the "
+                                             "target pressure in P (fitted) [s]", lo=0.01,
+                                             hi=30.0)
+    lap_time_constant_G_s: float = parameter(2.0, "time constant of the final approach to the "
+                                             "target pressure in G (fitted) [s]", lo=0.01,
+                                             hi=60.0)
+    release_time_constant_P_s: float = parameter(4.0, "time constant of the cylinder exhaust "
+                                                 "in P (fitted to UIC 540 release 15-20 s) [s]",
+                                                 lo=0.1, hi=100.0)
+    release_time_constant_G_s: float = parameter(20.0, "time constant of the cylinder exhaust "
+                                                 "in G (fitted to UIC 540 release 45-60 s) "
+                                                 "[s]", lo=0.1, hi=300.0)
+    aux_reservoir_volume_m3: float = parameter(0.1, "auxiliary reservoir volume (assumed "
+                                               "100 L) [m3]", lo=0.005, hi=1.0)
+    cylinder_volume_m3: float = parameter(0.02, "brake-cylinder volume at full stroke (assumed "
+                                          "20 L) [m3]", lo=0.001, hi=0.5)
+    aux_polytropic_index: float = parameter(1.2, "polytropic index of the auxiliary "
+                                            "reservoir's expansion (1 isothermal, 1.4 "
+                                            "adiabatic) [-]", lo=1.0, hi=1.4)
+    aux_charge_area_m2: float = parameter(2e-6, "effective area of the auxiliary reservoir's "
+                                          "charging choke (fitted) [m2]", lo=0.0, hi=1e-3)
+    supply_band_Pa: float = parameter(0.1 * BAR, "auxiliary-reservoir surplus over the cylinder "
+                                      "below which filling slows (fitted) [bar]",
+                                      key="supply_band_bar", scale=BAR, lo=0.001, hi=1.0)
+    quick_service_area_m2: float = parameter(1e-5, "effective area of the quick-service "
+                                             "connection (fitted) [m2]", lo=0.0, hi=1e-3)
+    quick_service_volume_m3: float = parameter(0.0005, "quick-service chamber (fitted) [m3]",
+                                               lo=1e-5, hi=0.05)
+    acceleration_chambers: bool = parameter(True, "distributors vent the pipe locally on an "
+                                            "emergency drop (UIC 540 emergency accelerator)")
+    accelerator_threshold_Pa: float = parameter(0.34 * BAR, "excess of the accelerator's "
+                                                "reference chamber over the pipe that opens it "
+                                                "(fitted) [bar]",
+                                                key="accelerator_threshold_bar", scale=BAR,
+                                                lo=0.01, hi=3.0)
+    accelerator_time_constant_s: float = parameter(0.2, "time constant of the reference "
+                                                   "chamber (drop rates above threshold / tau "
+                                                   "open it; fitted) [s]", lo=0.001, hi=10.0)
+    accelerator_area_m2: float = parameter(2e-4, "effective area of the accelerator's vent "
+                                           "(fitted) [m2]", lo=0.0, hi=1e-2)
+    accelerator_close_Pa: float = parameter(1.0 * BAR, "pipe pressure below which the "
+                                            "accelerator closes (fitted) [bar]",
+                                            key="accelerator_close_bar", scale=BAR,
+                                            lo=0.0, hi=4.0)
+
+
+#: Parameters calibration may fit, by short name.
+FITTABLE = {
+    "fill_rate_P": Fittable("fill_rate_P_Pa_s", "Pa/s", 0.5 * BAR, 3.0 * BAR, 1.0 * BAR,
+                            "cylinder filling rate after inshot in P (UIC 540: 3-5 s)"),
+    "inshot": Fittable("inshot_pressure_Pa", "Pa", 0.0, 1.5 * BAR, 0.5 * BAR,
+                       "cylinder pressure reached at the inshot rate"),
+    "hose_loss": Fittable("hose_loss_coefficient", "-", 0.0, 30.0, 10.0,
+                          "concentrated loss coefficient of a hose coupling"),
+}
+
+
+def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  # noqa: A001
+    """Pipe volumes, hose faces, distributor constants and the scalars of a train.
+
+    Parameters
+    ----------
+    consist : Consist
+        The train, head first (lengths, brakes, brake positions, venting vehicle).
+    params : Params
+    force_max_N : ndarray
+        Full block force of each vehicle [N] (zeros: brakes switched off).
+
+    Returns
+    -------
+    BrakeArrays
+        ``coef`` columns ``C_*`` per vehicle and ``S_*`` scalars.
+    """
+    p = params
+    vs = consist.vehicles
+    n = len(vs)
+    length = np.array([v.length_m for v in vs], float)
+    area = math.pi * p.pipe_diameter_m ** 2 / 4.0
+    rt = R_AIR * p.air_temperature_K
+    coef = np.zeros((n, N_COEF))
+    coef[:, C_CAP] = (area * length + p.branch_volume_m3) / rt
+    coef[:-1, C_DX] = 0.5 * (length[:-1] + length[1:])
+    coef[:, C_DISTRIBUTOR] = [1.0 if v.brake is not None else 0.0 for v in vs]
+    in_g = np.array([v.brake_position == "G" for v in vs])
+    coef[:, C_FILL_RATE] = np.where(in_g, p.fill_rate_G_Pa_s, p.fill_rate_P_Pa_s)
+    coef[:, C_LAP_TAU] = np.where(in_g, p.lap_time_constant_G_s, p.lap_time_constant_P_s)
+    coef[:, C_RELEASE_TAU] = np.where(in_g, p.release_time_constant_G_s,
+                                      p.release_time_constant_P_s)
+    vent = int(getattr(consist, "venting_vehicle", 0))
+    scalars = {
+        S_DT: p.pipe_step_s, S_AREA: area, S_DIAM: p.pipe_diameter_m,
+        S_HOSE_K: p.hose_loss_coefficient, S_MU: p.air_viscosity_Pa_s, S_RT: rt,
+        S_P_RUN: P_ATM + p.running_pressure_Pa, S_P_MR: P_ATM + p.main_reservoir_pressure_Pa,
+        S_A_FEED: p.feed_area_m2, S_A_VENT: p.service_vent_area_m2,
+        S_A_EMERG: p.emergency_area_m2, S_BAND: p.relay_band_Pa,
+        S_FIRST_STEP: p.first_step_Pa, S_FULL_SERVICE: p.full_service_Pa,
+        S_ER_DOWN: p.equalising_rate_down_Pa_s, S_ER_UP: p.equalising_rate_up_Pa_s,
+        S_VENT: float(vent), S_THETA_APP: p.application_threshold_Pa,
+        S_CR_TAU: p.control_time_constant_s, S_P_CMAX: p.max_cylinder_pressure_Pa,
+        S_DP_FULL: p.full_application_drop_Pa, S_HYST: p.hysteresis_Pa,
+        S_THETA_REL: p.release_threshold_Pa, S_P_INSHOT: p.inshot_pressure_Pa,
+        S_INSHOT_RATE: p.inshot_rate_Pa_s, S_A_AUX: p.aux_charge_area_m2,
+        S_V_AUX: p.aux_reservoir_volume_m3, S_V_CYL: p.cylinder_volume_m3,
+        S_N_POLY: p.aux_polytropic_index, S_A_QS: p.quick_service_area_m2,
+        S_V_QS: p.quick_service_volume_m3, S_ACC_ON: 1.0 if p.acceleration_chambers else 0.0,
+        S_ACC_THETA: p.accelerator_threshold_Pa, S_ACC_TAU: p.accelerator_time_constant_s,
+        S_A_ACC: p.accelerator_area_m2, S_ACC_CLOSE: P_ATM + p.accelerator_close_Pa,
+        S_SUPPLY_BAND: p.supply_band_Pa,
+    }
+    for col, value in scalars.items():
+        coef[:, col] = value
+    centre = centre_offsets_m(length)
+    delay = np.abs(centre - centre[vent]) / math.sqrt(rt)
+    return BrakeArrays(ID, delay, np.ascontiguousarray(force_max_N, float), coef)
+
+
+def initial_state(arrays: BrakeArrays) -> BrakeState:
+    """A charged train: pipe and reservoirs at the running pressure, brakes released."""
+    coef = arrays.coef
+    n = coef.shape[0]
+    p_run = coef[0, S_P_RUN]
+    extra = np.zeros((n, N_EXTRA))
+    for col in (X_P, X_CR, X_AUX, X_REF, X_ER):
+        extra[:, col] = p_run
+    extra[:, X_QS] = P_ATM
+    extra[:, X_GRID] = -1.0
+    return BrakeState(np.zeros(n), np.zeros(n), np.zeros(n, np.int64), np.zeros(n, np.int64),
+                      extra)
+
+
+# --------------------------------------------------------------------------- equations
+
+
+@jit
+def orifice(p_up, p_down, area):
+    """Mass flow through an orifice per unit c_choked / sqrt(R T), and its derivatives.
+
+    Isentropic nozzle: choked below the critical ratio, the ellipse ISO 6358 form above it,
+    linear over the last 0.5 % before equal pressures (keeps the derivative finite).
+
+    Parameters
+    ----------
+    p_up, p_down : float
+        Absolute pressures [Pa]; no flow when ``p_up <= p_down``.
+    area : float
+        Effective area [m2].
+
+    Returns
+    -------
+    m : float
+        area * p_up * phi(p_down / p_up) [m2 Pa]; times ``_C_CHOKED / sqrt(R T)`` gives kg/s.
+    dm_dup, dm_ddown : float
+        Derivatives [m2].
+    """
+    if p_up <= p_down or area <= 0.0:
+        return 0.0, 0.0, 0.0
+    r = p_down / p_up
+    if r <= _CRITICAL:
+        return area * p_up, area, 0.0
+    zl = (_LAMINAR - _CRITICAL) / (1.0 - _CRITICAL)
+    if r < _LAMINAR:
+        z = (r - _CRITICAL) / (1.0 - _CRITICAL)
+        phi = math.sqrt(1.0 - z * z)
+        dphi = -z / ((1.0 - _CRITICAL) * phi)
+    else:
+        phil = math.sqrt(1.0 - zl * zl)
+        phi = phil * (1.0 - r) / (1.0 - _LAMINAR)
+        dphi = -phil / (1.0 - _LAMINAR)
+    return area * p_up * phi, area * (phi - r * dphi), area * dphi
+
+
+@jit
+def _flow(pa, pb, area):
+    """Signed flow from a to b (orifice units, see :func:`orifice`) and d/d(pa)."""
+    if pa >= pb:
+        m, dup, _ = orifice(pa, pb, area)
+        return m, dup
+    m, _, ddown = orifice(pb, pa, area)
+    return -m, -ddown
+
+
+@jit
+def _clip01(x):
+    return 0.0 if x < 0.0 else (1.0 if x > 1.0 else x)
+
+
+@jit
+def _branch(i, p, coef, extra, mode, kflow):
+    """Outflow from pipe volume i [kg/s] and its derivative in the volume's pressure [kg/s/Pa].
+
+    Driver's brake valve (at the venting vehicle), accelerator vent, quick-service chamber and
+    auxiliary-reservoir charging, at pipe pressure ``p`` [Pa abs].
+    """
+    q = 0.0
+    dq = 0.0
+    if i == int(coef[0, S_VENT]):
+        if mode == _EMERGENCY:
+            m, d, _ = orifice(p, P_ATM, coef[0, S_A_EMERG])
+            q += m
+            dq += d
+        else:
+            band = coef[0, S_BAND]
+            per = extra[0, X_ER]
+            if p > per:
+                s = _clip01((p - per) / band)
+                m, d, _ = orifice(p, P_ATM, coef[0, S_A_VENT])
+                ds = 1.0 / band if s < 1.0 else 0.0
+                q += s * m
+                dq += s * d + ds * m
+            elif p < per:
+                s = _clip01((per - p) / band)
+                m, _, dd = orifice(coef[0, S_P_MR], p, coef[0, S_A_FEED])
+                ds = -1.0 / band if s < 1.0 else 0.0
+                q -= s * m
+                dq -= s * dd + ds * m
+    if coef[i, C_DISTRIBUTOR] > 0.0:
+        if extra[i, X_ACC] == 1.0:
+            m, d, _ = orifice(p, P_ATM, coef[0, S_A_ACC])
+            q += m
+            dq += d
+        if extra[i, X_QS_STATE] == 1.0:
+            m, d, _ = orifice(p, extra[i, X_QS], coef[0, S_A_QS])
+            q += m
+            dq += d
+        m, d, _ = orifice(p, extra[i, X_AUX], coef[0, S_A_AUX])  # check valve: pipe -> aux
+        q += m
+        dq += d
+    return q * kflow, dq * kflow
+
+
+@jit
+def _pipe_step(coef, extra, mode, dt, a, b, c, rhs, work):
+    """One backward-Euler step of the pipe pressures and face flows (in ``extra``)."""
+    n = coef.shape[0]
+    area, diam, hose_k, mu, rt = (coef[0, S_AREA], coef[0, S_DIAM], coef[0, S_HOSE_K],
+                                  coef[0, S_MU], coef[0, S_RT])
+    kflow = _C_CHOKED / math.sqrt(rt)
+    lam_floor = 64.0 * mu * area / diam  # laminar f |m| at vanishing flow [kg/s]
+    for i in range(n):
+        a[i] = 0.0
+        c[i] = 0.0
+        cap = coef[i, C_CAP] / dt
+        p = extra[i, X_P]
+        q, dq = _branch(i, p, coef, extra, mode, kflow)
+        b[i] = cap + dq
+        rhs[i] = cap * p - q + dq * p
+    for f in range(n - 1):
+        dx = coef[f, C_DX]
+        m = extra[f, X_M]
+        am = abs(m)
+        rho = 0.5 * (extra[f, X_P] + extra[f + 1, X_P]) / rt
+        re = am * diam / (area * mu)
+        fm = lam_floor
+        if re > 0.0:
+            fm = max(lam_floor, 0.316 * re ** -0.25 * am)
+        lam = (fm * dx / diam + hose_k * am) / (2.0 * rho * area * dx)
+        den = 1.0 + dt * lam
+        g = dt * area / (dx * den)
+        mt = m / den
+        work[f] = g
+        # m_new = mt + g (p_f - p_f+1)
+        b[f] += g
+        b[f + 1] += g
+        c[f] = -g
+        a[f + 1] = -g
+        rhs[f] -= mt
+        rhs[f + 1] += mt
+        extra[f, X_M] = mt  # provisional: completed below
+    # Thomas algorithm (diagonally dominant: no pivoting)
+    for i in range(1, n):
+        w = a[i] / b[i - 1]
+        b[i] -= w * c[i - 1]
+        rhs[i] -= w * rhs[i - 1]
+    pn = rhs[n - 1] / b[n - 1]
+    rhs[n - 1] = pn
+    for i in range(n - 2, -1, -1):
+        rhs[i] = (rhs[i] - c[i] * rhs[i + 1]) / b[i]
+    for f in range(n - 1):
+        extra[f, X_M] += work[f] * (rhs[f] - rhs[f + 1])
+
+
+@jit
+def _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold):
+    """Advance the pipe, the driver's valve and every distributor from grid point k to k + 1."""
+    coef, extra = arrays.coef, state.extra
+    n = coef.shape[0]
+    dt = coef[0, S_DT]
+    tk = k * dt
+    lvl, lkind, nxt = state.level, state.level_kind, state.next_event
+    # commands issued up to this grid point reach the driver's brake valve
+    j = nxt[0]
+    while j < events.count and events.time_s[j] <= tk + _GRID_TOL * dt:
+        for i in range(n):
+            lvl[i] = events.level[j]
+            lkind[i] = events.kind[j]
+        j += 1
+    for i in range(n):
+        nxt[i] = j
+    level = lvl[0]
+    if level > 0.0 and lkind[0] == EMERGENCY:
+        mode = _EMERGENCY
+    elif level > 0.0:
+        mode = _SERVICE
+    else:
+        mode = _RELEASE
+    # equalising reservoir of the driver's brake valve
+    p_run = coef[0, S_P_RUN]
+    if mode == _EMERGENCY:
+        er_target = P_ATM
+    elif mode == _SERVICE:
+        red = max(coef[0, S_FIRST_STEP], level * coef[0, S_FULL_SERVICE])
+        er_target = p_run - min(red, coef[0, S_FULL_SERVICE])
+    else:
+        er_target = p_run
+    er = extra[0, X_ER]
+    if er > er_target:
+        er = max(er_target, er - coef[0, S_ER_DOWN] * dt)
+    else:
+        er = min(er_target, er + coef[0, S_ER_UP] * dt)
+    extra[0, X_ER] = er
+    for i in range(n):
+        pold[i] = extra[i, X_P]
+    _pipe_step(coef, extra, mode, dt, a, b, c, rhs, work)
+    rt = coef[0, S_RT]
+    kflow = _C_CHOKED / math.sqrt(rt)
+    for i in range(n):
+        p = rhs[i]
+        if p < P_ATM:
+            p = P_ATM
+        extra[i, X_P] = p
+    # branch reservoirs take what the linearised pipe step gave them (mass conserved)
+    p_cmax = coef[0, S_P_CMAX]
+    dp_full = coef[0, S_DP_FULL]
+    hyst = coef[0, S_HYST]
+    e_cr = 1.0 - math.exp(-dt / coef[0, S_CR_TAU])
+    e_ref = 1.0 - math.exp(-dt / coef[0, S_ACC_TAU])
+    acc_on = coef[0, S_ACC_ON] > 0.0
+    v_aux = coef[0, S_V_AUX]
+    draw = coef[0, S_N_POLY] * coef[0, S_V_CYL] / v_aux
+    for i in range(n):
+        if coef[i, C_DISTRIBUTOR] <= 0.0:
+            continue
+        p = extra[i, X_P]
+        p0 = pold[i]
+        # auxiliary reservoir charging through its check valve
+        m, d, _ = orifice(p0, extra[i, X_AUX], coef[0, S_A_AUX])
+        qa = (m + d * (p - p0)) * kflow
+        if qa > 0.0:
+            extra[i, X_AUX] = min(extra[i, X_AUX] + dt * rt / v_aux * qa, max(p, extra[i, X_AUX]))
+        # quick-service chamber
+        if extra[i, X_QS_STATE] == 1.0:
+            m, d, _ = orifice(p0, extra[i, X_QS], coef[0, S_A_QS])
+            qq = (m + d * (p - p0)) * kflow
+            pq = extra[i, X_QS] + dt * rt / coef[0, S_V_QS] * max(qq, 0.0)
+            if pq >= p - 0.02 * BAR:
+                pq = min(pq, p)
+                extra[i, X_QS_STATE] = 2.0
+            extra[i, X_QS] = pq
+        # accelerator: opens when the pipe falls faster than its reference chamber follows
+        ref = extra[i, X_REF]
+        if extra[i, X_ACC] == 0.0 and acc_on and ref - p > coef[0, S_ACC_THETA]:
+            extra[i, X_ACC] = 1.0
+        elif extra[i, X_ACC] == 1.0 and p < coef[0, S_ACC_CLOSE]:
+            extra[i, X_ACC] = 2.0
+        extra[i, X_REF] = ref + (p - ref) * e_ref
+        # control reservoir, application and release
+        cr = extra[i, X_CR]
+        drop = cr - p
+        if extra[i, X_APPLIED] == 0.0:
+            if drop > coef[0, S_THETA_APP]:
+                extra[i, X_APPLIED] = 1.0
+                if extra[i, X_QS_STATE] == 0.0:
+                    extra[i, X_QS_STATE] = 1.0
+            else:
+                extra[i, X_CR] = cr + (p - cr) * e_cr
+        target = extra[i, X_TARGET]
+        if extra[i, X_APPLIED] == 1.0:
+            if drop < coef[0, S_THETA_REL]:
+                # fully released: the control reservoir follows the pipe again
+                extra[i, X_APPLIED] = 0.0
+                extra[i, X_QS_STATE] = 0.0
+                extra[i, X_QS] = P_ATM
+                extra[i, X_ACC] = 0.0
+                target = 0.0
+            else:
+                # play hysteresis between the application and release characteristics
+                lo = p_cmax * _clip01(drop / dp_full)
+                hi = p_cmax * _clip01((drop + hyst) / dp_full)
+                target = min(max(target, lo), hi)
+        extra[i, X_TARGET] = target
+        # brake cylinder
+        pc = extra[i, X_CYL]
+        if target > pc:
+            rate = coef[0, S_INSHOT_RATE] if pc < coef[0, S_P_INSHOT] else coef[i, C_FILL_RATE]
+            surplus = extra[i, X_AUX] - P_ATM - pc
+            rate *= _clip01(surplus / coef[0, S_SUPPLY_BAND])
+            gap = target - pc
+            tau = coef[i, C_LAP_TAU]
+            new = pc
+            if gap <= rate * tau:
+                new = target - gap * math.exp(-dt / tau)
+            elif rate > 0.0:
+                linear_s = (gap - rate * tau) / rate  # time left at the full rate
+                if linear_s >= dt:
+                    new = pc + rate * dt
+                else:
+                    new = target - rate * tau * math.exp(-(dt - linear_s) / tau)
+            new = min(new, target, p_cmax)
+            if new > pc:
+                extra[i, X_AUX] -= draw * (new - pc)
+                pc = new
+        elif target < pc:
+            pc = target + (pc - target) * math.exp(-dt / coef[i, C_RELEASE_TAU])
+        extra[i, X_CYL] = pc
+        state.force_N[i] = arrays.force_max_N[i] * pc / p_cmax
+
+
+@jit
+def advance(arrays, state, events, t0, t1):
+    """Advance pipe and distributors on their time grid up to t1 [s] (state updated in place).
+
+    Grid steps from the stored grid point to the last one at or before t1; the block forces
+    are those of that grid point (see the module notes: independent of how [t0, t1] is split).
+    """
+    extra = state.extra
+    dt = arrays.coef[0, S_DT]
+    k = int(extra[0, X_GRID])
+    if k < 0:
+        k = int(math.floor(t0 / dt + _GRID_TOL))
+    k1 = int(math.floor(t1 / dt + _GRID_TOL))
+    if k1 <= k:
+        extra[0, X_GRID] = float(k)
+        return
+    n = extra.shape[0]
+    a, b, c, rhs = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    work, pold = np.empty(n), np.empty(n)
+    while k < k1:
+        _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold)
+        k += 1
+    extra[0, X_GRID] = float(k)
+
+
+def snapshot_extras(arrays: BrakeArrays, state) -> dict:
+    """Brake-pipe and brake-cylinder pressure of every vehicle, gauge [Pa]."""
+    return {"brake_pipe_pressure_Pa": state.extra[:, X_P] - P_ATM,
+            "brake_cylinder_pressure_Pa": state.extra[:, X_CYL].copy()}

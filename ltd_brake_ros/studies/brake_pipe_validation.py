@@ -1,0 +1,320 @@
+"""Validation of the UIC brake-pipe model against public figures.
+
+Brake-only runs (the pipe and the distributors without the train's mechanics, which do not
+act on them) of a locomotive E402B followed by 80 t Shimmns wagons, all in P or all in G:
+
+* emergency propagation speed with and without acceleration chambers (UIC 540: 250-280 m/s
+  with them; 90-180 m/s without), the slope of the vehicles' distance from the venting
+  vehicle against the time their brake cylinder starts to fill;
+* brake-cylinder filling to 95 % of the maximum after an emergency command, and release to
+  10 % after the release command that follows it (UIC 540: P 3-5 s and 15-20 s, G 18-30 s
+  and 45-60 s), at the first wagon behind the locomotive;
+* equivalent brake build-up time of the whole train, T_e = integral of (1 - F(t) / F_full)
+  dt (the time of a full-force step with the same force-time loss), against train length
+  beside the ETCS conversion model (SUBSET-026 A.3.8), a conservative safety model;
+* a service cycle: first step, a graduated step, full service, graduated release and the
+  release and recharge of the whole train, with the times a driver sees.
+
+:func:`paper_stops` runs the paper's emergency stops (Tables 1-2) with the model.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import NamedTuple, Sequence
+
+import numpy as np
+
+from ..inputs import BrakeParams, consist_from_mapping
+from ..physics import brakes
+from ..physics.brakes import EMERGENCY, SERVICE, CommandEvents, friction, uic_pipe
+from ..physics.equations import centre_offsets_m
+
+#: Train lengths of the build-up comparison [m].
+LENGTHS_M = (300.0, 500.0, 700.0, 900.0, 1200.0, 1500.0)
+#: UIC 540 windows: emergency propagation [m/s], filling to 95 % and release to 10 % [s].
+WINDOWS = {
+    "propagation_with_chambers_m_s": (250.0, 280.0),
+    "propagation_without_chambers_m_s": (90.0, 180.0),
+    "fill_P_s": (3.0, 5.0), "fill_G_s": (18.0, 30.0),
+    "release_P_s": (15.0, 20.0), "release_G_s": (45.0, 60.0),
+}
+#: Cylinder pressure that counts as the start of filling [Pa].
+ONSET_PA = 0.05e5
+
+
+def train(wagons: int, position: str = "P"):
+    """E402B + ``wagons`` Shimmns of 80 t, every brake in ``position``.
+
+    Parameters
+    ----------
+    wagons : int
+    position : {"P", "G"}
+
+    Returns
+    -------
+    Consist
+    """
+    return consist_from_mapping({"name": f"E402B + {wagons} Shimmns 80 t ({position})",
+                                 "vehicles": [
+                                     {"type": "E402B", "brake_position": position},
+                                     {"type": "Shimmns", "count": int(wagons), "mass_t": 80.0,
+                                      "brake_position": position}]}, "<brake-pipe validation>")
+
+
+def wagons_for_length(length_m: float) -> int:
+    """Wagons of :func:`train` whose length is nearest to ``length_m`` [m]."""
+    return max(1, int(round((length_m - 19.42) / 12.64)))
+
+
+class History(NamedTuple):
+    """Pressures and block forces of a brake-only run, sampled.
+
+    Attributes
+    ----------
+    time_s : ndarray, shape (m,)
+    pipe_Pa, cylinder_Pa, force_N : ndarray, shape (m, n)
+        Gauge pipe and cylinder pressures [Pa], block forces [N].
+    force_max_N : ndarray, shape (n,)
+    distance_m : ndarray, shape (n,)
+        Distance of each vehicle's centre from the venting vehicle's [m].
+    """
+
+    time_s: np.ndarray
+    pipe_Pa: np.ndarray
+    cylinder_Pa: np.ndarray
+    force_N: np.ndarray
+    force_max_N: np.ndarray
+    distance_m: np.ndarray
+
+
+def brake_history(consist, params: uic_pipe.Params,
+                  commands: Sequence[tuple[float, float, int]], end_s: float,
+                  sample_s: float = 0.05) -> History:
+    """Run the pipe and distributors alone under commands and sample them.
+
+    Parameters
+    ----------
+    consist : Consist
+    params : uic_pipe.Params
+    commands : sequence of (time [s], level, kind)
+        Brake commands (``kind`` :data:`EMERGENCY` or :data:`SERVICE`), in time order.
+    end_s : float
+        Duration [s].
+    sample_s : float, optional
+        Sampling interval [s] (a multiple of the pipe step keeps samples on its grid).
+
+    Returns
+    -------
+    History
+    """
+    fr = friction.compile(consist, friction.Params())
+    arrays = uic_pipe.compile(consist, params, fr.force_max_N)
+    state = uic_pipe.initial_state(arrays)
+    events = CommandEvents.empty()
+    for t, level, kind in commands:
+        events = events.appended(float(t), float(level), int(kind), 0)
+    times = np.arange(0.0, end_s + 0.5 * sample_s, sample_s)
+    n = consist.n
+    pipe, cyl, force = (np.empty((times.size, n)) for _ in range(3))
+    for k, t in enumerate(times):
+        if k:
+            brakes.advance(arrays, state, events, times[k - 1], t)
+        extras = uic_pipe.snapshot_extras(arrays, state)
+        pipe[k] = extras["brake_pipe_pressure_Pa"]
+        cyl[k] = extras["brake_cylinder_pressure_Pa"]
+        force[k] = state.force_N
+    centre = centre_offsets_m(np.array([v.length_m for v in consist.vehicles]))
+    vent = int(getattr(consist, "venting_vehicle", 0))
+    return History(times, pipe, cyl, force, arrays.force_max_N.copy(),
+                   np.abs(centre - centre[vent]))
+
+
+def _first_time(time_s: np.ndarray, mask: np.ndarray) -> float:
+    return float(time_s[np.argmax(mask)]) if mask.any() else float("nan")
+
+
+def onset_times_s(history: History, threshold_Pa: float = ONSET_PA) -> np.ndarray:
+    """When each vehicle's cylinder pressure first exceeds ``threshold_Pa`` [s] (NaN: never)."""
+    return np.array([_first_time(history.time_s, history.cylinder_Pa[:, i] > threshold_Pa)
+                     for i in range(history.cylinder_Pa.shape[1])])
+
+
+def propagation_speed_m_s(length_m: float, params: uic_pipe.Params | None = None,
+                          chambers: bool = True) -> float:
+    """Emergency propagation speed along a P train of about ``length_m`` [m/s].
+
+    Least-squares slope of distance from the venting vehicle against onset time, over the
+    wagons (the locomotive vents the pipe itself).
+    """
+    params = replace(params or uic_pipe.Params(), acceleration_chambers=chambers)
+    consist = train(wagons_for_length(length_m))
+    h = brake_history(consist, params, [(0.0, 1.0, EMERGENCY)],
+                      4.0 + 2.0 * length_m / 100.0, sample_s=params.pipe_step_s)
+    onset = onset_times_s(h)[1:]
+    dist = h.distance_m[1:]
+    if np.isnan(onset).any():
+        return float("nan")
+    return float(np.polyfit(onset, dist, 1)[0])
+
+
+def fill_and_release_s(position: str, params: uic_pipe.Params | None = None,
+                       wagons: int = 38) -> tuple[float, float]:
+    """Filling to 95 % and release to 10 % of the maximum cylinder pressure [s].
+
+    Emergency at t = 0, release once every cylinder is full; both times at the first wagon,
+    from the command.
+
+    Returns
+    -------
+    fill_s, release_s : float
+    """
+    params = params or uic_pipe.Params()
+    t_release = 40.0 if position == "P" else 80.0
+    h = brake_history(train(wagons, position), params,
+                      [(0.0, 1.0, EMERGENCY), (t_release, 0.0, SERVICE)], t_release + 120.0,
+                      sample_s=params.pipe_step_s)
+    p_max = params.max_cylinder_pressure_Pa
+    c = h.cylinder_Pa[:, 1]
+    fill = _first_time(h.time_s, c >= 0.95 * p_max)
+    rel = _first_time(h.time_s, (h.time_s > t_release) & (c <= 0.1 * p_max)) - t_release
+    return fill, rel
+
+
+def equivalent_build_up_s(length_m: float, position: str,
+                          params: uic_pipe.Params | None = None) -> float:
+    """Equivalent brake build-up time of a whole train after an emergency command [s].
+
+    T_e = integral over t of (1 - F(t) / F_full), F the sum of the block forces.
+    """
+    params = params or uic_pipe.Params()
+    end = 60.0 if position == "P" else 120.0
+    h = brake_history(train(wagons_for_length(length_m), position), params,
+                      [(0.0, 1.0, EMERGENCY)], end, sample_s=0.01)
+    frac = h.force_N.sum(axis=1) / h.force_max_N.sum()
+    return float(np.trapezoid(1.0 - frac, h.time_s))
+
+
+def etcs_build_up_s(length_m: float, position: str) -> float:
+    """ETCS conversion model of a freight train's emergency build-up time (SUBSET-026 A.3.8).
+
+    T = a + b (L/100) + c (L/100)^2; up to 900 m: P (2.30, 0, 0.17) with L = max(400, L),
+    G (12.00, 0, 0.05); 900-1500 m: (-0.40, 1.60, 0.03).
+    """
+    if length_m > 900.0:
+        a, b, c = -0.40, 1.60, 0.03
+        x = length_m / 100.0
+    elif position == "P":
+        a, b, c = 2.30, 0.0, 0.17
+        x = max(400.0, length_m) / 100.0
+    else:
+        a, b, c = 12.00, 0.0, 0.05
+        x = length_m / 100.0
+    return a + b * x + c * x * x
+
+
+@dataclass(frozen=True)
+class ServiceCycle:
+    """Times and pressures of a service cycle (units in the names; tail = last wagon).
+
+    Commands: first step (the smallest demand) at 0 s, demand 0.5 at 30 s, full service at
+    60 s, demand 0.5 at 90 s (graduated release), release at 120 s.
+    """
+
+    first_step_head_drop_bar: float
+    first_step_cylinder_w1_bar: float
+    first_step_onset_tail_s: float
+    graduated_cylinder_w1_bar: float
+    full_service_cylinder_w1_bar: float
+    full_service_cylinder_tail_bar: float
+    full_service_95_tail_s: float
+    graduated_release_cylinder_w1_bar: float
+    release_10_tail_s: float
+    recharge_tail_s: float
+
+
+def service_cycle(length_m: float = 500.0, position: str = "P",
+                  params: uic_pipe.Params | None = None) -> ServiceCycle:
+    """A driver's service cycle on a train of about ``length_m`` [m]: see :class:`ServiceCycle`.
+
+    Recharge: until the last wagon's pipe is within 0.1 bar of the running pressure.
+    """
+    params = params or uic_pipe.Params()
+    cmds = [(0.0, 0.01, SERVICE), (30.0, 0.5, SERVICE), (60.0, 1.0, SERVICE),
+            (90.0, 0.5, SERVICE), (120.0, 0.0, SERVICE)]
+    h = brake_history(train(wagons_for_length(length_m), position), params, cmds, 400.0)
+    t, p, c = h.time_s, h.pipe_Pa, h.cylinder_Pa
+
+    def at(ts):
+        return int(np.searchsorted(t, ts - 1e-9))
+
+    bar = 1e5
+    full_tail = c[at(90.0), -1]
+    return ServiceCycle(
+        first_step_head_drop_bar=(params.running_pressure_Pa - p[at(30.0), 0]) / bar,
+        first_step_cylinder_w1_bar=c[at(30.0), 1] / bar,
+        first_step_onset_tail_s=_first_time(t, c[:, -1] > ONSET_PA),
+        graduated_cylinder_w1_bar=c[at(60.0), 1] / bar,
+        full_service_cylinder_w1_bar=c[at(90.0), 1] / bar,
+        full_service_cylinder_tail_bar=full_tail / bar,
+        full_service_95_tail_s=_first_time(t, (t >= 60.0) & (c[:, -1] >= 0.95 * full_tail))
+        - 60.0,
+        graduated_release_cylinder_w1_bar=c[at(120.0), 1] / bar,
+        release_10_tail_s=_first_time(t, (t > 120.0) & (c[:, -1] <= 0.1 * full_tail)) - 120.0,
+        recharge_tail_s=_first_time(t, (t > 120.0) & (p[:, -1] >= params.running_pressure_Pa
+                                                     - 0.1e5)) - 120.0)
+
+
+def paper_stops(params: BrakeParams, scenarios: Sequence[int] | None = None, *,
+                workers: int = 1):
+    """The paper's emergency stops (Tables 1-2) with these brake parameters.
+
+    Parameters
+    ----------
+    params : BrakeParams
+        Naming the ``uic_brake_pipe`` model.
+    scenarios : sequence of int, optional
+    workers : int, optional
+
+    Returns
+    -------
+    list of ValidationRow
+    """
+    from .runs import validate
+
+    return validate(params, None, list(scenarios) if scenarios else None, workers=workers)
+
+
+def report(params: uic_pipe.Params | None = None) -> str:
+    """The validation figures as Markdown tables (UIC 540 windows, ETCS model beside ours)."""
+    params = params or uic_pipe.Params()
+    lines = ["Emergency propagation (UIC 540: 250-280 m/s with acceleration chambers, "
+             "90-180 m/s without)", "", "| train m | with chambers m/s | without m/s |",
+             "|---|---|---|"]
+    for length in (500.0, 1000.0):
+        lines.append(f"| {length:.0f} | {propagation_speed_m_s(length, params, True):.0f} "
+                     f"| {propagation_speed_m_s(length, params, False):.0f} |")
+    lines += ["", "Cylinder at the first wagon after an emergency command (UIC 540 windows)", "",
+              "| position | fill to 95 % s | window | release to 10 % s | window |",
+              "|---|---|---|---|---|"]
+    for pos in ("P", "G"):
+        fill, rel = fill_and_release_s(pos, params)
+        wf, wr = WINDOWS[f"fill_{pos}_s"], WINDOWS[f"release_{pos}_s"]
+        lines.append(f"| {pos} | {fill:.1f} | {wf[0]:g}-{wf[1]:g} | {rel:.1f} "
+                     f"| {wr[0]:g}-{wr[1]:g} |")
+    lines += ["", "Equivalent emergency build-up time of the train, ours beside the ETCS "
+              "conversion model (SUBSET-026 A.3.8)", "",
+              "| length m | P ours s | P ETCS s | P ratio | G ours s | G ETCS s | G ratio |",
+              "|---|---|---|---|---|---|---|"]
+    for length in LENGTHS_M:
+        row = f"| {length:.0f} "
+        for pos in ("P", "G"):
+            ours, etcs = equivalent_build_up_s(length, pos, params), etcs_build_up_s(length, pos)
+            row += f"| {ours:.1f} | {etcs:.1f} | {ours / etcs:.2f} "
+        lines.append(row + "|")
+    sc = service_cycle(500.0, "P", params)
+    lines += ["", "Service cycle, 500 m train in P (first step at 0 s, demand 0.5 at 30 s, full "
+              "service at 60 s, 0.5 at 90 s, release at 120 s)", "", "| quantity | value |",
+              "|---|---|"]
+    for name, value in sc.__dict__.items():
+        lines.append(f"| {name} | {value:.2f} |")
+    return "\n".join(lines)

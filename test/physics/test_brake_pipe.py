@@ -1,0 +1,104 @@
+"""The UIC brake-pipe model against the UIC 540 windows and its own promises."""
+import dataclasses
+
+import numpy as np
+import pytest
+
+from ltd_brake_ros.inputs import BrakeParams, load_brake_params
+from ltd_brake_ros.physics.brakes import EMERGENCY, SERVICE, uic_pipe
+from ltd_brake_ros.simulator import Commands, Simulator
+from ltd_brake_ros.studies import brake_pipe_validation as bpv
+
+PARAMS = uic_pipe.Params()
+BAR = 1e5
+
+
+@pytest.mark.parametrize("length_m", [500.0, 1000.0])
+def test_emergency_propagation_speed_with_and_without_acceleration_chambers(length_m):
+    # UIC 540: 250-280 m/s with the distributors' acceleration chambers, 90-180 m/s without
+    assert 250.0 <= bpv.propagation_speed_m_s(length_m, PARAMS, True) <= 280.0
+    assert 90.0 <= bpv.propagation_speed_m_s(length_m, PARAMS, False) <= 180.0
+
+
+@pytest.mark.parametrize("position, fill_window, release_window",
+                         [("P", (3.0, 5.0), (15.0, 20.0)), ("G", (18.0, 30.0), (45.0, 60.0))])
+def test_cylinder_fill_and_release_times_meet_uic_540(position, fill_window, release_window):
+    fill, release = bpv.fill_and_release_s(position, PARAMS)
+    assert fill_window[0] <= fill <= fill_window[1]
+    assert release_window[0] <= release <= release_window[1]
+
+
+def test_full_application_is_the_full_block_force_at_3_8_bar():
+    h = bpv.brake_history(bpv.train(10), PARAMS, [(0.0, 1.0, EMERGENCY)], 30.0)
+    assert np.allclose(h.cylinder_Pa[-1], 3.8 * BAR, rtol=1e-6)
+    assert np.allclose(h.force_N[-1], h.force_max_N, rtol=1e-6)
+    assert np.all(h.pipe_Pa[-1] < 0.05 * BAR)  # vented to atmosphere
+    # the distributor never exceeds its maximum, the pipe never its running pressure
+    assert h.cylinder_Pa.max() <= 3.8 * BAR * (1 + 1e-12)
+    assert h.pipe_Pa.max() <= 5.0 * BAR * (1 + 1e-9)
+
+
+def test_service_steps_graduate_without_emergency():
+    cmds = [(0.0, 0.01, SERVICE), (30.0, 0.5, SERVICE), (60.0, 1.0, SERVICE),
+            (90.0, 0.5, SERVICE), (120.0, 0.0, SERVICE)]
+    h = bpv.brake_history(bpv.train(30), PARAMS, cmds, 300.0)
+    t = h.time_s
+
+    def at(ts):
+        return int(np.searchsorted(t, ts - 1e-9))
+
+    # first step: 0.4-0.5 bar at the head (UIC 541-03); 3.8 bar / 1.5 bar of pipe drop
+    drop = 5.0 * BAR - h.pipe_Pa[at(30.0), 0]
+    assert 0.4 * BAR <= drop <= 0.5 * BAR
+    assert h.cylinder_Pa[at(30.0), 1] == pytest.approx(3.8 / 1.5 * drop, rel=0.1)
+    # a graduated step, full service, a graduated release: each between its neighbours
+    c1 = h.cylinder_Pa[:, 1]
+    assert c1[at(30.0)] < c1[at(60.0)] < c1[at(90.0)]
+    assert 0.0 < c1[at(120.0)] < c1[at(90.0)]
+    # full service vents no more than 1.5 bar anywhere: no accelerator fired
+    assert h.pipe_Pa[: at(120.0)].min() > 5.0 * BAR - 1.5 * BAR - 0.1 * BAR
+    # release and recharge of the whole train
+    assert np.all(h.cylinder_Pa[-1] < 0.05 * BAR)
+    assert np.all(h.pipe_Pa[-1] > 4.9 * BAR)
+
+
+@pytest.mark.parametrize("drop_bar, over_s, applies", [(0.6, 6.0, True), (0.3, 60.0, False)])
+def test_sensitivity_and_insensitivity_of_the_distributors(drop_bar, over_s, applies):
+    # UIC 540: a drop of 0.6 bar in 6 s applies the brake, one of 0.3 bar in 60 s does not
+    params = dataclasses.replace(PARAMS, first_step_Pa=drop_bar * BAR,
+                                 equalising_rate_down_Pa_s=drop_bar * BAR / over_s)
+    h = bpv.brake_history(bpv.train(5), params, [(0.0, 0.01, SERVICE)], over_s + 20.0)
+    assert (h.cylinder_Pa[-1, 1:].min() > 0.5 * BAR) if applies else h.cylinder_Pa.max() == 0.0
+
+
+def test_unbraked_vehicles_pass_the_pipe_on_and_do_not_brake():
+    from ltd_brake_ros.inputs import consist_from_mapping
+
+    consist = consist_from_mapping({"name": "gap", "vehicles": [
+        {"type": "E402B"}, {"type": "Shimmns", "count": 3, "brake": {"type": "none"}},
+        {"type": "Shimmns", "count": 3}]}, "<test>")
+    h = bpv.brake_history(consist, PARAMS, [(0.0, 1.0, EMERGENCY)], 20.0)
+    assert np.all(h.force_N[:, 1:4] == 0.0)
+    assert np.all(h.force_N[-1, 4:] > 0.95 * h.force_max_N[4:])
+
+
+def test_simulator_shows_pipe_and_cylinder_pressures_and_stops_the_train():
+    params = load_brake_params("brake_params/uic_brake_pipe.yaml")
+    assert params.model == "uic_brake_pipe"
+    sim = Simulator(bpv.train(10), 100.0, params)
+    snap = sim.snapshot()
+    assert set(snap.extras) == {"brake_pipe_pressure_Pa", "brake_cylinder_pressure_Pa"}
+    assert np.allclose(snap.extras["brake_pipe_pressure_Pa"], 5.0 * BAR)
+    assert np.all(snap.extras["brake_cylinder_pressure_Pa"] == 0.0)
+    sim.advance(1.0, Commands(emergency=True))
+    while sim.stop_time_s is None:
+        assert sim.time_s < 120.0
+        snap = sim.advance(1.0)
+    assert np.allclose(snap.extras["brake_cylinder_pressure_Pa"], 3.8 * BAR, rtol=1e-6)
+    # at full application both brake models give the same force: distances within the
+    # few metres their different build-up costs at 100 km/h (about 28 m/s x 1-2 s)
+    empirical = Simulator(bpv.train(10), 100.0, BrakeParams())
+    empirical.advance(1.0, Commands(emergency=True))
+    while empirical.stop_time_s is None:
+        empirical.advance(1.0)
+    assert abs(sim.stopping_distance_m - empirical.stopping_distance_m) < 60.0
