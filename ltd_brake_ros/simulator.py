@@ -379,7 +379,13 @@ class Simulator:
     track : Track, optional
         Track profile (default: level straight track).
     step_s : float, optional
-        Largest integration step [s]; chunks are split into equal steps no longer than this.
+        Nominal (largest) integration step [s]; chunks are split into equal nominal steps no
+        longer than this.
+    tolerance_m_s : float or None, optional
+        Local error allowed per step in each vehicle's speed [m/s]: a nominal step whose
+        error estimate exceeds it is taken in shorter sub-steps (default
+        :data:`~ltd_brake_ros.physics.kernel.DEFAULT_TOLERANCE_M_S`); 0 or None takes every
+        nominal step whole (fixed steps).
     resistance : bool, optional
         Apply running resistance, Eq. 2.
     brakes : bool, optional
@@ -414,7 +420,8 @@ class Simulator:
                  step_s: float = 0.01,
                  resistance: bool = True, brakes: bool = True, max_newton_iter: int = 100,
                  newton_rtol: float = 1e-9, standstill_m_s: float = STANDSTILL_M_S,
-                 stick_band_m_s: float = 1e-5):
+                 stick_band_m_s: float = 1e-5,
+                 tolerance_m_s: float | None = kernel.DEFAULT_TOLERANCE_M_S):
         if lut is None:
             from .inputs import load_coupler_lut
 
@@ -424,10 +431,15 @@ class Simulator:
             raise InputError("speed_kmh", "", f"must be between 0 and 400 km/h, got {speed_kmh}")
         if not (math.isfinite(step_s) and 1e-5 <= step_s <= 0.5):
             raise InputError("step_s", "", f"must be between 1e-5 and 0.5 s, got {step_s}")
+        tolerance_m_s = 0.0 if tolerance_m_s is None else tolerance_m_s
+        if not (math.isfinite(tolerance_m_s) and 0.0 <= tolerance_m_s <= 1.0):
+            raise InputError("tolerance_m_s", "", "must be between 0 (fixed steps) and 1 m/s, "
+                             f"got {tolerance_m_s}")
         self.consist, self.params, self.lut = consist, params, lut
         self.track = track or Track()
         self.speed_kmh = float(speed_kmh)
         self.step_s = float(step_s)
+        self.tolerance_m_s = float(tolerance_m_s)
         self.max_newton_iter = int(max_newton_iter)
         self.newton_rtol = float(newton_rtol)
         self.standstill_m_s = float(standstill_m_s)
@@ -436,7 +448,8 @@ class Simulator:
         self.model = self._compile(consist, params, lut, self.track, resistance, self._brakes)
         self._brake_model = brakes_module.model_of(params.pneumatic)
         self._options = kernel.Options(self.max_newton_iter, self.newton_rtol,
-                                       self.standstill_m_s, self.stick_band_m_s)
+                                       self.standstill_m_s, self.stick_band_m_s,
+                                       self.tolerance_m_s)
         self.fext_N = np.zeros(self.n)
         n, nc = self.n, max(self.n - 1, 1)
         self._initial = SimulatorState(
@@ -446,6 +459,7 @@ class Simulator:
         self.limits: TrainLimits = train_limits(consist, lut)
         self._initial.watch = Watch(self.limits)
         self.reset()
+        self._bind_kernel()
 
     @staticmethod
     def _compile(consist: Consist, params: BrakeParams, coupler, track: Track, resistance: bool,
@@ -737,11 +751,13 @@ class Simulator:
         nsteps = max(1, math.ceil(duration_s / self.step_s - 1e-9))
         h = duration_s / nsteps
         remaining = nsteps
-        inputs = kernel.Inputs(st.traction_demand, self.fext_N)
+        inputs = kernel.Inputs(st.traction_demand, self._external_forces())
+        if self.model is not self._bound_model:
+            self._bind_kernel()  # a model put in by hand may have other array types
         while remaining:
             watch = st.stop_time_s is None and st.command_time_s is not None
             try:
-                code, t, hp, done = kernel.run_steps(
+                code, t, hp, done = self._run_steps(
                     remaining, h, st.time_s, st.last_step_s, self.model, inputs, st.kinematics,
                     st.brakes, st.events, st.stats[0], self._options, watch)
             except ArithmeticError as exc:
@@ -780,6 +796,32 @@ class Simulator:
         events += [Event(t, "limit_exceeded", d) for t, d in st.watch.check(
             t0, v0, st.time_s, float(k.v_m_s[0]), k, k.v_m_s, k.brake_force_N)]
         return self.snapshot(tuple(events))
+
+    def _bind_kernel(self) -> None:
+        """Compile (or load from the cache) the kernel for this train's bundles now, callable
+        without numba typing every bundle on every chunk."""
+        st = self._state
+        self._run_steps = kernel.bind_run_steps(
+            1, self.step_s, st.time_s, st.last_step_s, self.model,
+            kernel.Inputs(st.traction_demand, self.fext_N), st.kinematics, st.brakes, st.events,
+            st.stats[0], self._options, False)
+        self._bound_model = self.model
+
+    def _external_forces(self) -> np.ndarray:
+        """:attr:`fext_N` as the kernel takes it: n contiguous floats [N].
+
+        Raises
+        ------
+        ValueError
+            It does not hold one force per vehicle.
+        """
+        f = self.fext_N
+        if not (type(f) is np.ndarray and f.dtype == np.float64 and f.flags.c_contiguous):
+            f = self.fext_N = np.ascontiguousarray(f, dtype=float)
+        if f.shape != (self.n,):
+            raise ValueError(f"fext_N must hold one force per vehicle ({self.n}), got shape "
+                             f"{f.shape}")
+        return f
 
     def _report_out_of_range(self, events: list) -> None:
         nc = self.n - 1

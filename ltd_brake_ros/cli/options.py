@@ -42,8 +42,8 @@ def add_run_spec_options(p: argparse.ArgumentParser) -> None:
     """Add the options of one run: train, initial speed, model files, track.
 
     ``--scenario``, ``--consist``, ``--speed-kmh``, the model options of
-    :func:`add_model_options`, ``--track`` and ``--start-chainage-m``; read them back with
-    :func:`run_spec`.
+    :func:`add_model_options`, ``--tolerance-m-s``, ``--track`` and ``--start-chainage-m``;
+    read them back with :func:`run_spec`.
 
     Parameters
     ----------
@@ -56,6 +56,10 @@ def add_run_spec_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--speed-kmh", type=float, metavar="KMH",
                    help="initial speed [km/h] (default: the scenario's, else 100)")
     add_model_options(p)
+    p.add_argument("--tolerance-m-s", type=float, metavar="M_S",
+                   help="local error allowed per integration step in each vehicle's speed "
+                        "[m/s]: steps whose error estimate exceeds it are taken in shorter "
+                        "sub-steps; 0 takes fixed steps of --step-s (default 0.001)")
     p.add_argument("--track", metavar="FILE",
                    help="track profile, YAML (sections: from_m, gradient_permille uphill "
                         "positive, radius_m) or CSV (chainage_m,gradient_permille,radius_m); "

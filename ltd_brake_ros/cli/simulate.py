@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     with _Progress() as progress:
         sim = scripted_run(spec.consist, spec.speed_kmh,
                            CommandScript(((0.0, {"emergency": True}),)), params, lut,
-                           spec.track, step_s=args.step_s,
+                           spec.track, step_s=args.step_s, tolerance_m_s=tolerance(args),
                            chunk_s=CHUNK_S, max_time_s=MAX_TIME_S,
                            on_chunk=lambda s: events.extend(s.events), progress=progress)
     if sim.stop_time_s is None:
@@ -92,9 +92,18 @@ def run(args: argparse.Namespace) -> int:
         print(f"warning          {res.out_of_range.describe()}")
     _print_verdicts(verdicts)
     print(f"cost             {res.wall_time_s * 1e3:.0f} ms wall, {res.real_time_factor:.0f}x "
-          f"real time, {res.steps} steps, {res.newton_iterations_per_step:.2f} Newton "
+          f"real time, {res.steps} steps ({res.rejected_steps} rejected, shortest "
+          f"{res.smallest_step_s * 1e3:.2g} ms), {res.newton_iterations_per_step:.2f} Newton "
           "iterations per step")
     return 0
+
+
+def tolerance(args: argparse.Namespace) -> float:
+    """The ``--tolerance-m-s`` of a run, or the simulator's default [m/s] (the simulator
+    checks its range)."""
+    from ..physics.kernel import DEFAULT_TOLERANCE_M_S
+
+    return DEFAULT_TOLERANCE_M_S if args.tolerance_m_s is None else args.tolerance_m_s
 
 
 def _run_script(args: argparse.Namespace, spec) -> int:
@@ -111,7 +120,7 @@ def _run_script(args: argparse.Namespace, spec) -> int:
     start = time.perf_counter()
     with _Progress() as progress:
         sim = scripted_run(spec.consist, spec.speed_kmh, script, spec.params, spec.lut,
-                           spec.track, step_s=args.step_s,
+                           spec.track, step_s=args.step_s, tolerance_m_s=tolerance(args),
                            on_chunk=lambda s: events.extend(s.events), progress=progress)
     wall = time.perf_counter() - start
     snap = sim.snapshot()

@@ -1,4 +1,9 @@
-"""Compiled integration kernel: fixed-step variable-coefficient BDF2 for the train ODE.
+"""Compiled integration kernel: variable-step BDF2 with local error control for the train ODE.
+
+The caller divides time into nominal steps (at most its ``step_s``); each nominal step is taken
+whole when the local error estimate of the new speeds (BDF2 against a quadratic predictor,
+Milne's device) holds the tolerance, else in shorter sub-steps that end exactly on it. With a
+tolerance of 0 every nominal step is one step (fixed steps).
 
 Each step eliminates the positions (x_{n+1} = xhat + beta*h*u), leaving a nonlinear system in the
 new speeds u whose Jacobian is tridiagonal and symmetric positive definite (every coupler model
@@ -36,10 +41,13 @@ import numpy as np
 from . import brakes, couplers
 from .brakes import friction
 from .constants import KMH_PER_MS
-from .equations import jit, jit_inline, lut_segment, resistance_coefficients
+from .equations import HAVE_NUMBA, jit, jit_inline, lut_segment, resistance_coefficients
 
 #: Kernel return codes.
 OK, NEWTON_FAILED, STOPPED, NOT_FINITE = 0, 1, 2, 3
+
+#: Default local error allowed per step in each vehicle's speed [m/s].
+DEFAULT_TOLERANCE_M_S = 1e-3
 
 
 class TrainArrays(NamedTuple):
@@ -163,6 +171,12 @@ class KinematicState(NamedTuple):
         First time each coupler was out of its range [s] (-1: never).
     beyond_range_time_s : ndarray
         Time of each coupler's largest excursion [s] (-1: never out of range).
+    accel_m_s2 : ndarray
+        Acceleration of each vehicle at the end of the last step, the step's own derivative
+        [m/s^2] (the error estimate's predictor uses it).
+    step_control : ndarray, shape (2,)
+        Entry :data:`NEXT_STEP`: the step the error control proposes next [s] (0: the nominal
+        step); entry :data:`ACCEL_VALID`: 1 once ``accel_m_s2`` holds a step's derivative.
     """
 
     x_m: np.ndarray
@@ -180,6 +194,8 @@ class KinematicState(NamedTuple):
     beyond_range_m: np.ndarray
     out_of_range_time_s: np.ndarray
     beyond_range_time_s: np.ndarray
+    accel_m_s2: np.ndarray
+    step_control: np.ndarray
 
     @classmethod
     def initial(cls, n: int, speed_m_s: float) -> "KinematicState":
@@ -188,11 +204,16 @@ class KinematicState(NamedTuple):
         v = np.full(n, speed_m_s)
         return cls(np.zeros(n), v, np.zeros(n), np.full(n, speed_m_s), v == 0.0, np.zeros(n),
                    np.zeros(nc), np.zeros(n), np.zeros(nc), np.zeros(nc), np.zeros(nc),
-                   np.zeros(nc), np.zeros(nc), np.full(nc, -1.0), np.full(nc, -1.0))
+                   np.zeros(nc), np.zeros(nc), np.full(nc, -1.0), np.full(nc, -1.0),
+                   np.zeros(n), np.zeros(2))
 
     def copy(self) -> "KinematicState":
         """An independent copy."""
         return KinematicState(*(a.copy() for a in self))
+
+
+#: Entries of ``KinematicState.step_control``.
+NEXT_STEP, ACCEL_VALID = 0, 1
 
 
 class Options(NamedTuple):
@@ -208,12 +229,16 @@ class Options(NamedTuple):
         Speed below which a vehicle counts as standing (for the stop watch) [m/s].
     stick_band_m_s : float
         Half-width of the standstill band of brake and running resistance [m/s].
+    tolerance_m_s : float
+        Local error allowed per step in each vehicle's speed [m/s]; 0 takes every nominal
+        step whole (fixed steps, no error control).
     """
 
     max_newton_iter: int
     newton_rtol: float
     standstill_m_s: float
     stick_band_m_s: float
+    tolerance_m_s: float = 0.0
 
 
 class Stats(NamedTuple):
@@ -233,6 +258,11 @@ class Stats(NamedTuple):
         Vehicles put at rest instead of jumping across their standstill band.
     line_searches : int
         Newton updates shortened by the exact line search.
+    rejected_steps : int
+        Steps tried and rejected by the error control (or after a Newton iteration that did
+        not converge), then retried shorter.
+    smallest_step_s : float
+        Shortest step taken [s] (0 before the first).
     """
 
     steps: int = 0
@@ -241,10 +271,13 @@ class Stats(NamedTuple):
     band_cutbacks: int = 0
     standstill_projections: int = 0
     line_searches: int = 0
+    rejected_steps: int = 0
+    smallest_step_s: float = 0.0
 
 
 #: Record the kernel counts into (one field per :class:`Stats` field).
-STATS_DTYPE = np.dtype([(name, np.int64) for name in Stats._fields])
+STATS_DTYPE = np.dtype([(name, np.float64 if name == "smallest_step_s" else np.int64)
+                        for name in Stats._fields])
 
 
 def new_stats() -> np.ndarray:
@@ -254,7 +287,7 @@ def new_stats() -> np.ndarray:
 
 def read_stats(record: np.ndarray) -> Stats:
     """The counters of a record as :class:`Stats`."""
-    return Stats(*(int(x) for x in record[0].tolist()))
+    return Stats(*record[0].tolist())
 
 
 class _Step(NamedTuple):
@@ -281,11 +314,6 @@ class _Work(NamedTuple):
     cj: np.ndarray
     fc: np.ndarray
     fair: np.ndarray
-
-
-def _work(n: int) -> _Work:
-    nc = max(n - 1, 1)
-    return _Work(np.empty(n), np.empty(n), np.empty(nc), np.empty(nc), np.empty(n))
 
 
 @jit
@@ -500,16 +528,63 @@ def _solve_tridiagonal(dvec, cj, g, off, dwork, du):
         du[i] = (du[i] - off[i] * du[i + 1]) / dwork[i]
 
 
+#: Shortest step the error control may take, as a fraction of the nominal step.
+MIN_STEP_FRACTION = 2.0 ** -12
+#: Safety factor and the bounds of the step-size change after an error estimate.
+SAFETY, MAX_GROWTH, MAX_SHRINK = 0.9, 2.0, 0.2
+
+
+@jit
+def _error_ratio(u, v, vp, a, stuck, stuck0, hs, hp, tolerance):
+    """Largest local error estimate of the new speeds over the tolerance (Milne's device).
+
+    The predictor is the quadratic through v(t - hp) and v(t) with slope a(t) (after a
+    restart, hp = 0 and a backward-Euler step: the line v + hs a). With the leading error
+    terms of variable-step BDF2, C_c = (1+w)^2 / (6 w (1+2w)) hs^3 v''', and of that
+    predictor, C_p = (1+w) / (6 w) hs^3 v''' (w = hs / hp), the corrector's error is
+    C_c / (C_c + C_p) = (1+w) / (2+3w) of their difference; 1/2 for backward Euler against
+    the explicit Euler line. Vehicles inside, entering or leaving the standstill band are
+    left out: the friction's kink there is resolved by the band, not by the step.
+    """
+    if hp > 0.0:
+        w = hs / hp
+        k = (1.0 + w) / (2.0 + 3.0 * w)
+        cq = hs * hs / (hp * hp)
+    else:
+        k = 0.5
+        cq = 0.0
+    worst = 0.0
+    for i in range(u.shape[0]):
+        if stuck[i] or stuck0[i]:
+            continue
+        q = v[i] + a[i] * hs
+        if cq > 0.0:
+            q += cq * (vp[i] - v[i] + a[i] * hp)
+        e = abs(u[i] - q)
+        if e > worst:
+            worst = e
+    return k * worst / tolerance
+
+
 @jit
 def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats, options,
               watch_stop):
-    """Advance the train ``nsteps`` steps of ``h`` seconds (state updated in place).
+    """Advance the train ``nsteps`` nominal steps of ``h`` seconds (state updated in place).
+
+    With ``options.tolerance_m_s`` > 0 each nominal step is taken whole when the local error
+    estimate (:func:`_error_ratio`) holds the tolerance, else in shorter sub-steps: a step
+    whose estimate exceeds it (or whose Newton iteration does not converge) is rejected and
+    retried shorter, and after each accepted step the next may grow by up to
+    :data:`MAX_GROWTH`, never beyond the nominal step. Sub-steps end exactly on the nominal
+    step's end and the proposal carries over in ``state.step_control``: the same nominal
+    steps give the same result however they are grouped into calls. With tolerance 0 every
+    nominal step is one step.
 
     Parameters
     ----------
     nsteps : int
     h : float
-        Step [s].
+        Nominal step [s].
     t : float
         Time at the start [s].
     hp : float
@@ -528,8 +603,8 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
         Counters, incremented.
     options : Options
     watch_stop : bool
-        Return ``STOPPED`` right after the first step that leaves every vehicle slower than
-        ``options.standstill_m_s``.
+        Return ``STOPPED`` right after the first nominal step that leaves every vehicle slower
+        than ``options.standstill_m_s``.
 
     Returns
     -------
@@ -537,18 +612,18 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
         ``OK``, ``NEWTON_FAILED``, ``NOT_FINITE`` (a force or its residual became infinite or
         NaN) or ``STOPPED``.
     t : float
-        Time reached [s].
+        Time reached [s]: the end of the last nominal step completed, or the start of the
+        step that failed.
     hp : float
         Last step size [s].
     done : int
-        Steps completed.
+        Nominal steps completed.
     """
     # bundle fields bound once: the loops below then touch plain arrays only
     train = model.train
     fr_arrays = model.friction
     cp = model.couplers
     band = cp.band_m_s
-    cp_model, cp_table, cp_coef = cp.model, cp.table, cp.coef
     mass = train.mass_kg
     x, v, xp, vp, stuck = state.x_m, state.v_m_s, state.x_prev_m, state.v_prev_m_s, state.stuck
     ftr, fbrake, fc = state.traction_force_N, state.brake_force_N, state.coupler_force_N
@@ -556,21 +631,23 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
     peak_buff, t_buff = state.peak_buff_N, state.peak_buff_time_s
     lut_out, t_lut_out = state.beyond_range_m, state.out_of_range_time_s
     t_lut_max = state.beyond_range_time_s
+    acc, control = state.accel_m_s2, state.step_control
     fext = inputs.external_force_N
     fb = brake_state.force_N
     kind, blocks, arrangement, mu_disc = (fr_arrays.kind, fr_arrays.blocks, fr_arrays.arrangement,
                                           fr_arrays.mu_disc)
     v_stick = options.stick_band_m_s
     v_stop = options.standstill_m_s
+    tolerance = options.tolerance_m_s
+    adaptive = tolerance > 0.0
+    h_min = h * MIN_STEP_FRACTION
     n = x.shape[0]
     nc = n - 1
     u = np.empty(n)
-    off = np.empty(max(nc, 1))
-    du = np.empty(n)
     xhat = np.empty(n)
     vhat = np.empty(n)
     stuck0 = np.empty(n, np.bool_)
-    dtmp = np.empty(n)
+    stuck1 = np.empty(n, np.bool_)
     fa_scale = np.empty(n)
     tol = np.empty(n)
     res_a = np.empty((n, 3))
@@ -580,139 +657,145 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
         res_a[i, 0] = a0
         res_a[i, 1] = a1
         res_a[i, 2] = a2
-    g, diag, cj, fair = np.empty(n), np.empty(n), np.empty(max(nc, 1)), np.empty(n)
-    w = _Work(g, diag, cj, fc, fair)
-    ut = np.empty(n)
-    trial = _Work(np.empty(n), np.empty(n), np.empty(max(nc, 1)), np.empty(max(nc, 1)),
-                  np.empty(n))
+    w = _Work(np.empty(n), np.empty(n), np.empty(max(nc, 1)), fc, np.empty(n))
+    fair = w.fair
+    scratch = _Scratch(np.empty(n), np.empty(n), np.empty(max(nc, 1)), np.empty(n),
+                       _Work(np.empty(n), np.empty(n), np.empty(max(nc, 1)),
+                             np.empty(max(nc, 1)), np.empty(n)))
     fx = np.empty(n)
     fgrade = np.empty(n)
     rcurve = np.empty(n)
     xlo = cp.valid_lo_m
     xhi = cp.valid_hi_m
+    # what a rejected step undoes: the brake model's state and the applied traction
+    save_fb, save_lvl = np.empty_like(fb), np.empty_like(brake_state.level)
+    save_kind = np.empty_like(brake_state.level_kind)
+    save_next = np.empty_like(brake_state.next_event)
+    save_extra, save_ftr = np.empty_like(brake_state.extra), np.empty_like(ftr)
     for _step in range(nsteps):
-        t1 = t + h
-        brakes.advance(model.brakes, brake_state, events, t, t1)
-        # traction and track forces vary slowly: taken at the start of the step
-        advance_traction(h, inputs.traction_demand, v, ftr, model.traction)
-        track_forces(x, train, model.track, fgrade, rcurve)
-        for i in range(n):
-            fx[i] = fext[i] + ftr[i] + fgrade[i]
-            fa_scale[i] = friction.force_scale(kind[i], blocks[i], arrangement[i], mu_disc[i],
-                                               fb[i])
-        if hp > 0.0:
-            w_ratio = h / hp
-            c1 = (1.0 + w_ratio) ** 2 / (1.0 + 2.0 * w_ratio)
-            c2 = w_ratio * w_ratio / (1.0 + 2.0 * w_ratio)
-            beta = (1.0 + w_ratio) / (1.0 + 2.0 * w_ratio)
-        else:
-            w_ratio, c1, c2, beta = 0.0, 1.0, 0.0, 1.0
-        bh = beta * h
-        for i in range(n):
-            stuck0[i] = stuck[i]
-            xhat[i] = c1 * x[i] - c2 * xp[i]
-            vhat[i] = c1 * v[i] - c2 * vp[i]
-            u[i] = v[i] + w_ratio * (v[i] - vp[i])
-            if u[i] * v[i] <= 0.0:
-                u[i] = v[i]  # never extrapolate through standstill
-        s = _Step(xhat, vhat, bh, fx, train.meff_kg, tol, res_a, fa_scale, rcurve, train.resist,
-                  v_stick)
-        it = 0
+        t_end = t + h
+        tc = t
         while True:
-            converged = _residual(u, s, cp, fr_arrays, w)
-            if converged:
-                break
-            if not _all_finite(g):
-                # a NaN or infinite force cannot be iterated away: fail at once
-                stats.newton_iterations += it
-                return NOT_FINITE, t, hp, _step
-            if it >= options.max_newton_iter:
-                stats.newton_iterations += it
-                return NEWTON_FAILED, t, hp, _step
-            it += 1
-            _solve_tridiagonal(diag, cj, g, off, dtmp, du)
-            if it <= FAST_ITERATIONS and band > 0.0:
-                # a coupler whose deflection speed would jump across its whole steep band
-                # most likely ends inside it: solve again with that coupler on the band's line
-                again = False
-                for j in range(nc):
-                    r0 = u[j] - u[j + 1]
-                    r1 = r0 + du[j] - du[j + 1]
-                    if r0 * r1 < 0.0 and abs(r0) > band and abs(r1) > band:
-                        d = xhat[j] - xhat[j + 1] + bh * r0
-                        fm, kd, kr = couplers.force(cp_model, cp_table, cp_coef, d, 0.0)
-                        shift = fm + kr * r0 - fc[j]  # band line at r0 minus actual force
-                        g[j] += shift
-                        g[j + 1] -= shift
-                        cj[j] = bh * kd + kr
-                        again = True
-                if again:
-                    _solve_tridiagonal(diag, cj, g, off, dtmp, du)
-            if it <= FAST_ITERATIONS:
-                # cheap safeguards, enough for almost every step: do not let a coupler jump
-                # across its whole steep band, nor a vehicle across its standstill band
-                alpha = 1.0
-                if band > 0.0:
-                    for j in range(nc):
-                        r0 = u[j] - u[j + 1]
-                        r1 = r0 + du[j] - du[j + 1]
-                        if r0 * r1 < 0.0 and abs(r0) > band and abs(r1) > band:
-                            a = r0 / (r0 - r1)
-                            if a < alpha:
-                                alpha = a
-                if alpha < 1.0:
-                    stats.band_cutbacks += 1
-                for i in range(n):
-                    u1 = u[i] + alpha * du[i]
-                    if u1 * u[i] < 0.0 and abs(u[i]) > v_stick and abs(u1) > v_stick:
-                        u1 = 0.0
-                        stats.standstill_projections += 1
-                    u[i] = u1
+            # ---- the sub-step [tc, t1] of the nominal step [t, t_end]
+            prop = control[NEXT_STEP]
+            if not adaptive or (tc == t and (prop <= 0.0 or prop >= h)):
+                hs, t1, last = h, t_end, True
             else:
-                # globally convergent fallback: g is the gradient of a convex potential and du
-                # a descent direction, so minimise along du exactly (the directional
-                # derivative is monotone along the line: find its root by bisection)
-                stats.line_searches += 1
-                alpha = _line_search(u, du, ut, s, cp, fr_arrays, trial)
-                for i in range(n):
-                    u[i] += alpha * du[i]
-        for i in range(n):
-            stuck[i] = abs(u[i]) <= v_stick
-        stats.steps += 1
-        stats.newton_iterations += it
-        if it > stats.max_newton_iterations:
-            stats.max_newton_iterations = it
-        for i in range(n):
-            xp[i] = x[i]
-            vp[i] = v[i]
-            x[i] = xhat[i] + bh * u[i]
-            v[i] = u[i]
-            fbrake[i] = fair[i]
-        # a vehicle that entered or left the standstill band has a kink in its speed: the BDF2
-        # history would extrapolate across it (and push a just-stopped vehicle backwards), so
-        # the next step restarts with backward Euler
-        hp = h
-        for i in range(n):
-            if stuck[i] != stuck0[i]:
-                hp = 0.0
+                rem = t_end - tc
+                if prop <= 0.0 or prop >= rem:
+                    hs, t1, last = rem, t_end, True
+                elif prop > 0.5 * rem:
+                    hs, last = 0.5 * rem, False  # two even pieces rather than a sliver
+                    t1 = tc + hs
+                else:
+                    hs, last = prop, False
+                    t1 = tc + hs
+            if adaptive:
+                save_fb[:] = fb
+                save_lvl[:] = brake_state.level
+                save_kind[:] = brake_state.level_kind
+                save_next[:] = brake_state.next_event
+                save_extra[:] = brake_state.extra
+                save_ftr[:] = ftr
+            brakes.advance(model.brakes, brake_state, events, tc, t1)
+            # traction and track forces vary slowly: taken at the start of the step
+            advance_traction(hs, inputs.traction_demand, v, ftr, model.traction)
+            track_forces(x, train, model.track, fgrade, rcurve)
+            for i in range(n):
+                fx[i] = fext[i] + ftr[i] + fgrade[i]
+                fa_scale[i] = friction.force_scale(kind[i], blocks[i], arrangement[i],
+                                                   mu_disc[i], fb[i])
+            if hp > 0.0:
+                w_ratio = hs / hp
+                c1 = (1.0 + w_ratio) ** 2 / (1.0 + 2.0 * w_ratio)
+                c2 = w_ratio * w_ratio / (1.0 + 2.0 * w_ratio)
+                beta = (1.0 + w_ratio) / (1.0 + 2.0 * w_ratio)
+            else:
+                w_ratio, c1, c2, beta = 0.0, 1.0, 0.0, 1.0
+            bh = beta * hs
+            for i in range(n):
+                stuck0[i] = stuck[i]
+                xhat[i] = c1 * x[i] - c2 * xp[i]
+                vhat[i] = c1 * v[i] - c2 * vp[i]
+                u[i] = v[i] + w_ratio * (v[i] - vp[i])
+                if u[i] * v[i] <= 0.0:
+                    u[i] = v[i]  # never extrapolate through standstill
+            s = _Step(xhat, vhat, bh, fx, train.meff_kg, tol, res_a, fa_scale, rcurve,
+                      train.resist, v_stick)
+            code = _newton(u, s, cp, fr_arrays, w, scratch, options.max_newton_iter, stats)
+            if code == NOT_FINITE:
+                return NOT_FINITE, tc, hp, _step
+            reject = code == NEWTON_FAILED
+            if reject and not (adaptive and hs > h_min):
+                return NEWTON_FAILED, tc, hp, _step
+            for i in range(n):
+                stuck1[i] = abs(u[i]) <= v_stick
+            ratio = 0.0
+            order = 2.0 if hp > 0.0 else 1.0
+            if adaptive and not reject and control[ACCEL_VALID] > 0.0:
+                ratio = _error_ratio(u, v, vp, acc, stuck1, stuck0, hs, hp, tolerance)
+                reject = ratio > 1.0 and hs > h_min
+            if reject:
+                # undo the step's changes to the state and retry shorter
+                fb[:] = save_fb
+                brake_state.level[:] = save_lvl
+                brake_state.level_kind[:] = save_kind
+                brake_state.next_event[:] = save_next
+                brake_state.extra[:] = save_extra
+                ftr[:] = save_ftr
+                stats.rejected_steps += 1
+                if code == NEWTON_FAILED:
+                    shrink = 0.25
+                else:
+                    shrink = max(MAX_SHRINK, SAFETY * ratio ** (-1.0 / (order + 1.0)))
+                control[NEXT_STEP] = max(hs * shrink, h_min)
+                continue
+            # ---- accept
+            if adaptive:
+                grow = MAX_GROWTH
+                if ratio > 0.0:
+                    grow = min(MAX_GROWTH, SAFETY * ratio ** (-1.0 / (order + 1.0)))
+                control[NEXT_STEP] = min(hs * grow, h)
+            stats.steps += 1
+            if stats.smallest_step_s == 0.0 or hs < stats.smallest_step_s:
+                stats.smallest_step_s = hs
+            for i in range(n):
+                stuck[i] = stuck1[i]
+                xp[i] = x[i]
+                vp[i] = v[i]
+                x[i] = xhat[i] + bh * u[i]
+                acc[i] = (u[i] - vhat[i]) / bh
+                v[i] = u[i]
+                fbrake[i] = fair[i]
+            control[ACCEL_VALID] = 1.0
+            # a vehicle that entered or left the standstill band has a kink in its speed: the
+            # BDF2 history would extrapolate across it (and push a just-stopped vehicle
+            # backwards), so the next step restarts with backward Euler
+            hp = hs
+            for i in range(n):
+                if stuck[i] != stuck0[i]:
+                    hp = 0.0
+                    break
+            tc = t1
+            for j in range(nc):
+                f = fc[j]
+                if f > peak_draft[j]:
+                    peak_draft[j] = f
+                    t_draft[j] = tc
+                if f < peak_buff[j]:
+                    peak_buff[j] = f
+                    t_buff[j] = tc
+                d = x[j] - x[j + 1]
+                out = d - xhi if d > xhi else (xlo - d if d < xlo else 0.0)
+                if out > 0.0:
+                    if t_lut_out[j] < 0.0:
+                        t_lut_out[j] = tc
+                    if out > lut_out[j]:
+                        lut_out[j] = out
+                        t_lut_max[j] = tc
+            if last:
                 break
-        t = t1
-        for j in range(nc):
-            f = fc[j]
-            if f > peak_draft[j]:
-                peak_draft[j] = f
-                t_draft[j] = t
-            if f < peak_buff[j]:
-                peak_buff[j] = f
-                t_buff[j] = t
-            d = x[j] - x[j + 1]
-            out = d - xhi if d > xhi else (xlo - d if d < xlo else 0.0)
-            if out > 0.0:
-                if t_lut_out[j] < 0.0:
-                    t_lut_out[j] = t
-                if out > lut_out[j]:
-                    lut_out[j] = out
-                    t_lut_max[j] = t
+        t = t_end
         if watch_stop:
             all_stopped = True
             for i in range(n):
@@ -722,3 +805,114 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
             if all_stopped:
                 return STOPPED, t, hp, _step + 1
     return OK, t, hp, nsteps
+
+
+class _Scratch(NamedTuple):
+    """Work arrays of the Newton iteration: trial speeds, update, Thomas scratch, line search."""
+
+    ut: np.ndarray
+    du: np.ndarray
+    off: np.ndarray
+    dwork: np.ndarray
+    trial: _Work
+
+
+@jit
+def _newton(u, s, cp, fr_arrays, w, scratch, max_iter, stats):
+    """Solve the step's equations for the new speeds ``u`` (in place) by Newton's method.
+
+    Returns ``OK``, ``NEWTON_FAILED`` after ``max_iter`` iterations without convergence, or
+    ``NOT_FINITE``.
+    """
+    g, diag, cj, fc = w.g, w.diag, w.cj, w.fc
+    ut, du, off, dtmp, trial = scratch.ut, scratch.du, scratch.off, scratch.dwork, scratch.trial
+    cp_model, cp_table, cp_coef, band = cp.model, cp.table, cp.coef, cp.band_m_s
+    xhat, bh, v_stick = s.xhat, s.bh, s.v_stick
+    n = u.shape[0]
+    nc = n - 1
+    it = 0
+    while True:
+        converged = _residual(u, s, cp, fr_arrays, w)
+        if converged:
+            break
+        if not _all_finite(g):
+            # a NaN or infinite force cannot be iterated away: fail at once
+            stats.newton_iterations += it
+            return NOT_FINITE
+        if it >= max_iter:
+            stats.newton_iterations += it
+            return NEWTON_FAILED
+        it += 1
+        _solve_tridiagonal(diag, cj, g, off, dtmp, du)
+        if it <= FAST_ITERATIONS and band > 0.0:
+            # a coupler whose deflection speed would jump across its whole steep band
+            # most likely ends inside it: solve again with that coupler on the band's line
+            again = False
+            for j in range(nc):
+                r0 = u[j] - u[j + 1]
+                r1 = r0 + du[j] - du[j + 1]
+                if r0 * r1 < 0.0 and abs(r0) > band and abs(r1) > band:
+                    d = xhat[j] - xhat[j + 1] + bh * r0
+                    fm, kd, kr = couplers.force(cp_model, cp_table, cp_coef, d, 0.0)
+                    shift = fm + kr * r0 - fc[j]  # band line at r0 minus actual force
+                    g[j] += shift
+                    g[j + 1] -= shift
+                    cj[j] = bh * kd + kr
+                    again = True
+            if again:
+                _solve_tridiagonal(diag, cj, g, off, dtmp, du)
+        if it <= FAST_ITERATIONS:
+            # cheap safeguards, enough for almost every step: do not let a coupler jump
+            # across its whole steep band, nor a vehicle across its standstill band
+            alpha = 1.0
+            if band > 0.0:
+                for j in range(nc):
+                    r0 = u[j] - u[j + 1]
+                    r1 = r0 + du[j] - du[j + 1]
+                    if r0 * r1 < 0.0 and abs(r0) > band and abs(r1) > band:
+                        a = r0 / (r0 - r1)
+                        if a < alpha:
+                            alpha = a
+            if alpha < 1.0:
+                stats.band_cutbacks += 1
+            for i in range(n):
+                u1 = u[i] + alpha * du[i]
+                if u1 * u[i] < 0.0 and abs(u[i]) > v_stick and abs(u1) > v_stick:
+                    u1 = 0.0
+                    stats.standstill_projections += 1
+                u[i] = u1
+        else:
+            # globally convergent fallback: g is the gradient of a convex potential and du
+            # a descent direction, so minimise along du exactly (the directional
+            # derivative is monotone along the line: find its root by bisection)
+            stats.line_searches += 1
+            alpha = _line_search(u, du, ut, s, cp, fr_arrays, trial)
+            for i in range(n):
+                u[i] += alpha * du[i]
+    stats.newton_iterations += it
+    if it > stats.max_newton_iterations:
+        stats.max_newton_iterations = it
+    return OK
+
+
+def bind_run_steps(*args):
+    """:func:`run_steps` compiled for the types of ``args``, callable without numba's dispatch.
+
+    Numba types every argument of every call, recursively through the bundles (about 60
+    arrays for a train), which costs more than a short chunk's physics; the returned callable
+    skips that. Call it only with arguments of the same types (the same bundles, arrays of
+    the same dtype, dimension and C layout).
+
+    Parameters
+    ----------
+    *args
+        A valid argument list of :func:`run_steps` (it is not run).
+
+    Returns
+    -------
+    callable
+        Same arguments and results as :func:`run_steps`.
+    """
+    if not HAVE_NUMBA:  # pragma: no cover - plain Python has no dispatch to skip
+        return run_steps
+    return run_steps.compile(tuple(run_steps.typeof_pyval(a) for a in args))

@@ -7,6 +7,7 @@ from typing import Callable, NamedTuple
 
 from ..inputs import (BrakeParams, CommandScript, Consist, CouplerLUT, Scenario, Track,
                      load_brake_params, load_coupler_lut, load_scenarios)
+from ..physics.kernel import DEFAULT_TOLERANCE_M_S
 from ..simulator import Commands, CouplerExcursions, SimulationError, Simulator, Snapshot
 from .parallel import map_jobs
 
@@ -61,6 +62,8 @@ class StopResult:
     newton_iterations: int
     newton_iterations_per_step: float
     max_newton_iterations: int
+    rejected_steps: int
+    smallest_step_s: float
     out_of_range: CouplerExcursions
 
     def as_dict(self) -> dict:
@@ -70,7 +73,7 @@ class StopResult:
 
 def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | None = None,
                    lut: CouplerLUT | None = None, track: Track | None = None, *,
-                   step_s: float = 0.01,
+                   step_s: float = 0.01, tolerance_m_s: float | None = DEFAULT_TOLERANCE_M_S,
                    chunk_s: float = 1.0, max_time_s: float = 600.0,
                    on_chunk: Callable[[Snapshot], None] | None = None,
                    progress: Callable[[Progress], None] | None = None) -> StopResult:
@@ -86,7 +89,10 @@ def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | Non
     track : Track, optional
         Track profile (default: level straight track).
     step_s : float, optional
-        Integration step [s].
+        Nominal (largest) integration step [s].
+    tolerance_m_s : float or None, optional
+        Local error allowed per step in each vehicle's speed [m/s] (0 or None: fixed steps;
+        see :class:`~ltd_brake_ros.simulator.Simulator`).
     chunk_s : float, optional
         Simulated time per :meth:`Simulator.advance` call [s].
     max_time_s : float, optional
@@ -108,7 +114,8 @@ def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | Non
     """
     params = params or load_brake_params()
     lut = lut or load_coupler_lut()
-    sim = Simulator(consist, speed_kmh, params, lut, track, step_s=step_s)
+    sim = Simulator(consist, speed_kmh, params, lut, track, step_s=step_s,
+                    tolerance_m_s=tolerance_m_s)
     start = time.perf_counter()
     _report(sim.advance(chunk_s, Commands(emergency=True)), None, start, on_chunk, progress)
     while sim.stop_time_s is None:
@@ -121,7 +128,8 @@ def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | Non
 
 def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
                  params: BrakeParams | None = None, lut: CouplerLUT | None = None,
-                 track: Track | None = None, *, step_s: float = 0.01, chunk_s: float = 0.1,
+                 track: Track | None = None, *, step_s: float = 0.01,
+                 tolerance_m_s: float | None = DEFAULT_TOLERANCE_M_S, chunk_s: float = 0.1,
                  max_time_s: float = 3600.0, on_chunk: Callable[[Snapshot], None] | None = None,
                  progress: Callable[[Progress], None] | None = None) -> Simulator:
     """Run a train under a timed command script.
@@ -138,7 +146,9 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
     params, lut, track : optional
         Model inputs (defaults: paper parameters, shipped table, level track).
     step_s, chunk_s : float, optional
-        Integration step and command-update interval [s].
+        Nominal integration step and command-update interval [s].
+    tolerance_m_s : float or None, optional
+        Local error allowed per step in each vehicle's speed [m/s] (0 or None: fixed steps).
     max_time_s : float, optional
         Upper bound when the script has no duration and the train does not stop [s].
     on_chunk : callable, optional
@@ -153,7 +163,7 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
         The simulator at the end of the run (its counters, peaks and events describe it).
     """
     sim = Simulator(consist, speed_kmh, params or load_brake_params(), lut or load_coupler_lut(),
-                    track, step_s=step_s)
+                    track, step_s=step_s, tolerance_m_s=tolerance_m_s)
     end = script.duration_s if script.duration_s is not None else max_time_s
     state: dict = {}
     k = 0
@@ -209,7 +219,9 @@ def summarize(sim: Simulator, wall_s: float) -> StopResult:
         wall_time_s=wall_s, real_time_factor=sim.time_s / wall_s if wall_s > 0 else float("inf"),
         steps=sim.steps, newton_iterations=sim.newton_iterations,
         newton_iterations_per_step=sim.newton_iterations / max(sim.steps, 1),
-        max_newton_iterations=sim.max_newton_iterations, out_of_range=beyond)
+        max_newton_iterations=sim.max_newton_iterations,
+        rejected_steps=sim.stats.rejected_steps, smallest_step_s=sim.stats.smallest_step_s,
+        out_of_range=beyond)
 
 
 @dataclass(frozen=True)

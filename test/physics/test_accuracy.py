@@ -72,9 +72,9 @@ def test_no_spurious_oscillation(stop):
     assert acc.total_variation_ratio <= 1.0 + TV_MARGIN
 
 
-def test_unconverged_step_raises():
+def test_unconverged_step_raises_with_fixed_steps():
     # Two iterations settle coasting steps but not the first steps of brake application.
-    sim = make_sim(max_newton_iter=2)
+    sim = make_sim(max_newton_iter=2, tolerance_m_s=0.0)
     sim.advance(0.5)
     with pytest.raises(SimulationError, match="did not converge"):
         sim.advance(10.0, Commands(emergency=True))
@@ -87,6 +87,16 @@ def test_unconverged_step_raises():
     sim.reset()
     sim.advance(0.5)
     assert sim.time_s == pytest.approx(0.5)
+
+
+def test_unconverged_step_is_retried_shorter_under_error_control():
+    # the same two iterations suffice once the error control shortens the hard steps
+    sim = make_sim(max_newton_iter=2)
+    sim.advance(0.5)
+    sim.advance(10.0, Commands(emergency=True))
+    stats = sim.stats
+    assert stats.rejected_steps > 0 and stats.smallest_step_s < sim.step_s
+    assert sim.time_s == pytest.approx(10.5, abs=1e-12)
 
 
 def test_non_finite_force_raises():
