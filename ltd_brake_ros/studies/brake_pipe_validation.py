@@ -8,7 +8,9 @@ act on them) of a locomotive E402B followed by 80 t Shimmns wagons, all in P or 
   vehicle against the time their brake cylinder starts to fill;
 * brake-cylinder filling to 95 % of the maximum after an emergency command, and release to
   10 % after the release command that follows it (UIC 540: P 3-5 s and 15-20 s, G 18-30 s
-  and 45-60 s), at the first wagon behind the locomotive;
+  and 45-60 s), at the first wagon behind the locomotive, timed from the driver's brake valve
+  acting (the command plus ``valve_delay_s``), as UIC 540 times the distributor from the
+  change of pipe pressure;
 * equivalent brake build-up time of the whole train, T_e = integral of (1 - F(t) / F_full)
   dt (the time of a full-force step with the same force-time loss), against train length
   beside the ETCS conversion model (SUBSET-026 A.3.8), a conservative safety model;
@@ -162,7 +164,7 @@ def fill_and_release_s(position: str, params: uic_pipe.Params | None = None,
     """Filling to 95 % and release to 10 % of the maximum cylinder pressure [s].
 
     Emergency at t = 0, release once every cylinder is full; both times at the first wagon,
-    from the command.
+    from the driver's brake valve acting (command + ``valve_delay_s``).
 
     Returns
     -------
@@ -175,8 +177,9 @@ def fill_and_release_s(position: str, params: uic_pipe.Params | None = None,
                       sample_s=params.pipe_step_s)
     p_max = params.max_cylinder_pressure_Pa
     c = h.cylinder_Pa[:, 1]
-    fill = _first_time(h.time_s, c >= 0.95 * p_max)
-    rel = _first_time(h.time_s, (h.time_s > t_release) & (c <= 0.1 * p_max)) - t_release
+    fill = _first_time(h.time_s, c >= 0.95 * p_max) - params.valve_delay_s
+    rel = (_first_time(h.time_s, (h.time_s > t_release) & (c <= 0.1 * p_max)) - t_release
+           - params.valve_delay_s)
     return fill, rel
 
 

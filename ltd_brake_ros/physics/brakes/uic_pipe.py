@@ -33,13 +33,16 @@ changes the full block force through the braked weight (Eq. 4), not the cylinder
 Block force = full block force x cylinder pressure / maximum cylinder pressure.
 
 Time grid. The model advances on a fixed global grid t_k = k * pipe_step_s; a command issued at t
-acts from the first grid point at or after t, and the block forces held between grid points are
-those of the last grid point reached. ``advance(t0, t1)`` steps from the stored grid point to
-the last one at or before t1, so any split of [t0, t1] gives bit-identical results, and no step
-uses a command issued after its start (causal).
+reaches the driver's brake valve at t + valve_delay, within a step from that instant on (the
+equalising reservoir moves for the rest of the step, the emergency orifice opens linearly over
+its opening time), so results vary continuously with command times and delays. The block
+forces held between grid points are those of the last grid point reached. ``advance(t0, t1)``
+steps from the stored grid point to the last one at or before t1, so any split of [t0, t1] gives
+bit-identical results. A step uses the commands issued before its end, all known to the advance
+that computes it (commands are issued between advances, at their ends).
 
-``delay_s`` is the earliest a pressure change from the venting vehicle can reach each vehicle:
-distance / isothermal sound speed. No distributor responds before it.
+``delay_s`` is the earliest a command can reach each vehicle's distributor: the valve delay
+plus the distance from the venting vehicle over the isothermal sound speed.
 """
 from __future__ import annotations
 
@@ -70,6 +73,8 @@ C_DISTRIBUTOR = 2  # 1: the vehicle has a distributor
 C_FILL_RATE = 3  # filling rate of the cylinder after inshot (P or G) [Pa/s]
 C_LAP_TAU = 4  # time constant of the approach to the target pressure [s]
 C_RELEASE_TAU = 5  # time constant of the release [s]
+C_LAP_DECAY = 43  # exp(-pipe step / C_LAP_TAU)
+C_RELEASE_DECAY = 44  # exp(-pipe step / C_RELEASE_TAU)
 # ---- scalars (the same in every row)
 S_DT, S_AREA, S_DIAM, S_HOSE_K, S_MU, S_RT = 6, 7, 8, 9, 10, 11
 S_P_RUN, S_P_MR, S_A_FEED, S_A_VENT, S_A_EMERG, S_BAND = 12, 13, 14, 15, 16, 17
@@ -79,7 +84,9 @@ S_P_INSHOT, S_INSHOT_RATE, S_A_AUX, S_V_AUX, S_V_CYL, S_N_POLY = 29, 30, 31, 32,
 S_A_QS, S_V_QS, S_ACC_ON, S_ACC_THETA, S_ACC_TAU, S_A_ACC, S_ACC_CLOSE = (35, 36, 37, 38, 39,
                                                                            40, 41)
 S_SUPPLY_BAND = 42
-N_COEF = 43
+S_VALVE_DELAY = 45
+S_EM_OPEN = 46
+N_COEF = 47
 
 # ---- columns of BrakeState.extra
 X_P = 0  # pipe pressure, absolute [Pa]
@@ -95,7 +102,8 @@ X_QS = 9  # quick-service chamber, absolute [Pa]
 X_QS_STATE = 10  # quick service: 0 armed, 1 drawing, 2 done
 X_GRID = 11  # row 0: index of the grid point reached (-1: none yet)
 X_ER = 12  # row 0: equalising reservoir of the driver's brake valve, absolute [Pa]
-N_EXTRA = 13
+X_T_ACT = 13  # row 0: when the current command reached the driver's brake valve [s]
+N_EXTRA = 14
 
 # driver's brake valve positions
 _RELEASE, _SERVICE, _EMERGENCY = 0, 1, 2
@@ -131,6 +139,9 @@ class Params:
     pipe_step_s: float = parameter(0.005, "internal step of the pipe on its fixed time grid "
                                    "(numerical) [s]", lo=1e-4, hi=0.05)
     # --- driver's brake valve
+    valve_delay_s: float = parameter(1.02, "delay from a command to the driver's brake valve "
+                                     "acting on the pipe (fitted to the LTDPoliTo distances of "
+                                     "Tables 1-2) [s]", lo=0.0, hi=5.0)
     running_pressure_Pa: float = parameter(5.0 * BAR, "brake-pipe running pressure (UIC 540) "
                                            "[bar]", key="running_pressure_bar", scale=BAR,
                                            lo=3.0, hi=7.0)
@@ -142,6 +153,8 @@ class Params:
                                     "main reservoir (fitted) [m2]", lo=1e-6, hi=1e-2)
     service_vent_area_m2: float = parameter(1.5e-4, "effective area of the relay valve's vent "
                                             "(fitted) [m2]", lo=1e-6, hi=1e-2)
+    emergency_opening_s: float = parameter(0.1, "time of the emergency orifice to open fully "
+                                           "(fitted) [s]", lo=0.001, hi=2.0)
     emergency_area_m2: float = parameter(5e-4, "effective area of the emergency position's "
                                          "orifice (1 1/4 in bore, fitted) [m2]", lo=1e-6,
                                          hi=1e-2)
@@ -163,7 +176,7 @@ class Params:
                                                key="equalising_rate_up_bar_s", scale=BAR,
                                                lo=0.01, lo_open=True, hi=20.0)
     # --- distributor
-    application_threshold_Pa: float = parameter(0.3 * BAR, "pipe drop below the control "
+    application_threshold_Pa: float = parameter(0.27 * BAR, "pipe drop below the control "
                                                 "reservoir that starts an application (UIC "
                                                 "540 sensitivity, fitted) [bar]",
                                                 key="application_threshold_bar", scale=BAR,
@@ -249,6 +262,8 @@ class Params:
 
 #: Parameters calibration may fit, by short name.
 FITTABLE = {
+    "valve_delay": Fittable("valve_delay_s", "s", 0.0, 3.0, 1.0,
+                            "delay from a command to the driver's brake valve acting"),
     "fill_rate_P": Fittable("fill_rate_P_Pa_s", "Pa/s", 0.5 * BAR, 3.0 * BAR, 1.0 * BAR,
                             "cylinder filling rate after inshot in P (UIC 540: 3-5 s)"),
     "inshot": Fittable("inshot_pressure_Pa", "Pa", 0.0, 1.5 * BAR, 0.5 * BAR,
@@ -289,6 +304,8 @@ def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  #
     coef[:, C_LAP_TAU] = np.where(in_g, p.lap_time_constant_G_s, p.lap_time_constant_P_s)
     coef[:, C_RELEASE_TAU] = np.where(in_g, p.release_time_constant_G_s,
                                       p.release_time_constant_P_s)
+    coef[:, C_LAP_DECAY] = np.exp(-p.pipe_step_s / coef[:, C_LAP_TAU])
+    coef[:, C_RELEASE_DECAY] = np.exp(-p.pipe_step_s / coef[:, C_RELEASE_TAU])
     vent = int(getattr(consist, "venting_vehicle", 0))
     scalars = {
         S_DT: p.pipe_step_s, S_AREA: area, S_DIAM: p.pipe_diameter_m,
@@ -308,12 +325,13 @@ def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  #
         S_V_QS: p.quick_service_volume_m3, S_ACC_ON: 1.0 if p.acceleration_chambers else 0.0,
         S_ACC_THETA: p.accelerator_threshold_Pa, S_ACC_TAU: p.accelerator_time_constant_s,
         S_A_ACC: p.accelerator_area_m2, S_ACC_CLOSE: P_ATM + p.accelerator_close_Pa,
-        S_SUPPLY_BAND: p.supply_band_Pa,
+        S_SUPPLY_BAND: p.supply_band_Pa, S_VALVE_DELAY: p.valve_delay_s,
+        S_EM_OPEN: p.emergency_opening_s,
     }
     for col, value in scalars.items():
         coef[:, col] = value
     centre = centre_offsets_m(length)
-    delay = np.abs(centre - centre[vent]) / math.sqrt(rt)
+    delay = p.valve_delay_s + np.abs(centre - centre[vent]) / math.sqrt(rt)
     return BrakeArrays(ID, delay, np.ascontiguousarray(force_max_N, float), coef)
 
 
@@ -327,6 +345,7 @@ def initial_state(arrays: BrakeArrays) -> BrakeState:
         extra[:, col] = p_run
     extra[:, X_QS] = P_ATM
     extra[:, X_GRID] = -1.0
+    extra[:, X_T_ACT] = -np.inf
     return BrakeState(np.zeros(n), np.zeros(n), np.zeros(n, np.int64), np.zeros(n, np.int64),
                       extra)
 
@@ -388,7 +407,7 @@ def _clip01(x):
 
 
 @jit
-def _branch(i, p, coef, extra, mode, kflow):
+def _branch(i, p, coef, extra, mode, em_open, kflow):
     """Outflow from pipe volume i [kg/s] and its derivative in the volume's pressure [kg/s/Pa].
 
     Driver's brake valve (at the venting vehicle), accelerator vent, quick-service chamber and
@@ -398,7 +417,7 @@ def _branch(i, p, coef, extra, mode, kflow):
     dq = 0.0
     if i == int(coef[0, S_VENT]):
         if mode == _EMERGENCY:
-            m, d, _ = orifice(p, P_ATM, coef[0, S_A_EMERG])
+            m, d, _ = orifice(p, P_ATM, em_open * coef[0, S_A_EMERG])
             q += m
             dq += d
         else:
@@ -432,7 +451,7 @@ def _branch(i, p, coef, extra, mode, kflow):
 
 
 @jit
-def _pipe_step(coef, extra, mode, dt, a, b, c, rhs, work):
+def _pipe_step(coef, extra, mode, em_open, dt, a, b, c, rhs, work):
     """One backward-Euler step of the pipe pressures and face flows (in ``extra``)."""
     n = coef.shape[0]
     area, diam, hose_k, mu, rt = (coef[0, S_AREA], coef[0, S_DIAM], coef[0, S_HOSE_K],
@@ -444,7 +463,7 @@ def _pipe_step(coef, extra, mode, dt, a, b, c, rhs, work):
         c[i] = 0.0
         cap = coef[i, C_CAP] / dt
         p = extra[i, X_P]
-        q, dq = _branch(i, p, coef, extra, mode, kflow)
+        q, dq = _branch(i, p, coef, extra, mode, em_open, kflow)
         b[i] = cap + dq
         rhs[i] = cap * p - q + dq * p
     for f in range(n - 1):
@@ -455,7 +474,7 @@ def _pipe_step(coef, extra, mode, dt, a, b, c, rhs, work):
         re = am * diam / (area * mu)
         fm = lam_floor
         if re > 0.0:
-            fm = max(lam_floor, 0.316 * re ** -0.25 * am)
+            fm = max(lam_floor, 0.316 * am / math.sqrt(math.sqrt(re)))  # Blasius
         lam = (fm * dx / diam + hose_k * am) / (2.0 * rho * area * dx)
         den = 1.0 + dt * lam
         g = dt * area / (dx * den)
@@ -490,9 +509,12 @@ def _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold):
     dt = coef[0, S_DT]
     tk = k * dt
     lvl, lkind, nxt = state.level, state.level_kind, state.next_event
-    # commands issued up to this grid point reach the driver's brake valve
+    # commands that act before the end of this step (issued a valve delay earlier) reach the
+    # driver's brake valve; within the step they act from their own time on
     j = nxt[0]
-    while j < events.count and events.time_s[j] <= tk + _GRID_TOL * dt:
+    delay = coef[0, S_VALVE_DELAY]
+    while j < events.count and events.time_s[j] + delay < tk + dt:
+        extra[0, X_T_ACT] = events.time_s[j] + delay
         for i in range(n):
             lvl[i] = events.level[j]
             lkind[i] = events.kind[j]
@@ -515,15 +537,18 @@ def _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold):
         er_target = p_run - min(red, coef[0, S_FULL_SERVICE])
     else:
         er_target = p_run
+    acting = _clip01((tk + dt - extra[0, X_T_ACT]) / dt)  # fraction of the step
     er = extra[0, X_ER]
     if er > er_target:
-        er = max(er_target, er - coef[0, S_ER_DOWN] * dt)
+        er = max(er_target, er - coef[0, S_ER_DOWN] * dt * acting)
     else:
-        er = min(er_target, er + coef[0, S_ER_UP] * dt)
+        er = min(er_target, er + coef[0, S_ER_UP] * dt * acting)
+    # the emergency valve opens linearly over its opening time
+    em_open = _clip01((tk + dt - extra[0, X_T_ACT]) / coef[0, S_EM_OPEN])
     extra[0, X_ER] = er
     for i in range(n):
         pold[i] = extra[i, X_P]
-    _pipe_step(coef, extra, mode, dt, a, b, c, rhs, work)
+    _pipe_step(coef, extra, mode, em_open, dt, a, b, c, rhs, work)
     rt = coef[0, S_RT]
     kflow = _C_CHOKED / math.sqrt(rt)
     for i in range(n):
@@ -601,7 +626,7 @@ def _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold):
             tau = coef[i, C_LAP_TAU]
             new = pc
             if gap <= rate * tau:
-                new = target - gap * math.exp(-dt / tau)
+                new = target - gap * coef[i, C_LAP_DECAY]
             elif rate > 0.0:
                 linear_s = (gap - rate * tau) / rate  # time left at the full rate
                 if linear_s >= dt:
@@ -613,7 +638,7 @@ def _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold):
                 extra[i, X_AUX] -= draw * (new - pc)
                 pc = new
         elif target < pc:
-            pc = target + (pc - target) * math.exp(-dt / coef[i, C_RELEASE_TAU])
+            pc = target + (pc - target) * coef[i, C_RELEASE_DECAY]
         extra[i, X_CYL] = pc
         state.force_N[i] = arrays.force_max_N[i] * pc / p_cmax
 

@@ -1,0 +1,86 @@
+"""Speed of the UIC brake-pipe model beside the paper's empirical brake, one Markdown table.
+
+For each train an emergency stop from 100 km/h is run on one core with the ``Simulator`` in 1 s
+chunks (best of a few runs, after a warm-up that compiles): the real-time factor (simulated
+stop time / wall time) with the empirical model (``brake_params/paper.yaml``) and with the brake
+pipe (``brake_params/uic_brake_pipe.yaml``), the stopping distances, and the wall time of the
+pipe and distributors alone over the same simulated time (no mechanics), to show what the pipe
+itself costs. Targets: >= 300x real time for scenario 6, >= 50x for 150 wagons, >= 5x for
+1000 wagons.
+
+Usage::
+
+    python benchmarks/bench_brake_pipe.py            # all rows (about 2 minutes)
+    python benchmarks/bench_brake_pipe.py --quick    # scenario 6 and 150 wagons
+"""
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+
+from ltd_brake_ros.inputs import get_scenario, load_brake_params, load_consist  # noqa: E402
+from ltd_brake_ros.physics.brakes import EMERGENCY, uic_pipe  # noqa: E402
+from ltd_brake_ros.simulator import Commands, SimulationError, Simulator  # noqa: E402
+from ltd_brake_ros.studies.brake_pipe_validation import brake_history, train  # noqa: E402
+
+SPEED_KMH = 100.0
+TARGETS = {"scenario 6": 300.0, "150 wagons G": 50.0, "1000 wagons G": 5.0}
+
+
+def stop(consist, params):
+    """Wall time [s], simulated stop time [s], distance [m], Newton failure (bool)."""
+    sim = Simulator(consist, SPEED_KMH, params)
+    t0 = time.perf_counter()
+    try:
+        sim.advance(1.0, Commands(emergency=True))
+        while sim.stop_time_s is None and sim.time_s < 600.0:
+            sim.advance(1.0)
+    except SimulationError:
+        return time.perf_counter() - t0, sim.time_s, float("nan"), True
+    return time.perf_counter() - t0, sim.time_s, sim.stopping_distance_m, False
+
+
+def best_stop(consist, params, repeats):
+    runs = [stop(consist, params) for _ in range(repeats)]
+    walls = sorted(r[0] for r in runs)
+    return walls[0], walls[-1], runs[0]
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="scenario 6 and 150 wagons only")
+    ap.add_argument("--repeats", type=int, default=3, help="runs per cell (best reported)")
+    args = ap.parse_args()
+    empirical = load_brake_params("brake_params/paper.yaml")
+    pipe = load_brake_params("brake_params/uic_brake_pipe.yaml")
+    rows = [("scenario 6", load_consist(get_scenario(6).consist_file)),
+            ("150 wagons G", train(150, "G"))]
+    if not args.quick:
+        rows.append(("1000 wagons G", train(1000, "G")))
+    stop(rows[0][1], empirical)  # compile both models
+    stop(rows[0][1], pipe)
+    print("| train | vehicles | empirical x real time | pipe x real time (spread) | target "
+          "| pipe alone x real time | distance empirical m | distance pipe m | Newton failures |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for name, consist in rows:
+        repeats = 1 if consist.n > 500 else args.repeats
+        e_best, _, (_, e_t, e_d, e_fail) = best_stop(consist, empirical, repeats)
+        p_best, p_worst, (_, p_t, p_d, p_fail) = best_stop(consist, pipe, repeats)
+        t0 = time.perf_counter()
+        brake_history(consist, pipe.pneumatic, [(0.0, 1.0, EMERGENCY)], p_t, sample_s=1.0)
+        alone = time.perf_counter() - t0
+        print(f"| {name} | {consist.n} | {e_t / e_best:.0f} | {p_t / p_best:.0f} "
+              f"({p_t / p_worst:.0f}-{p_t / p_best:.0f}) | {TARGETS[name]:.0f} "
+              f"| {p_t / alone:.0f} | {e_d:.1f} | {p_d:.1f} | {int(e_fail) + int(p_fail)} |")
+    print(f"\npipe step {uic_pipe.Params().pipe_step_s * 1e3:g} ms; best of {args.repeats} "
+          "(1 for 1000 wagons); one core")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
