@@ -19,6 +19,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--scenarios", metavar="LIST", help="subset, e.g. 1-6 or 2,6,12 (default: all)")
     p.add_argument("--jobs", type=int, metavar="N", help="parallel processes (default: all cores)")
     add_model_options(p)
+    p.add_argument("--brake-pipe", action="store_true",
+                   help="first print the UIC brake-pipe model's validation (propagation, filling "
+                        "and release, build-up time beside ETCS, service cycle; not with --json); "
+                        "--params defaults to brake_params/uic_brake_pipe.yaml")
     p.add_argument("--json", action="store_true", help="print JSON instead of the table")
     p.set_defaults(func=run)
     return p
@@ -68,7 +72,12 @@ def run(args: argparse.Namespace) -> int:
             raise InputError("command line", "--scenarios", f"unknown scenario {k}; Tables 1-2 "
                              f"have {min(known)}-{max(known)}")
     workers = positive_int(args.jobs, "--jobs") or default_workers()
+    if args.brake_pipe:
+        from ..studies import brake_pipe_validation as bpv
+        args.params = args.params or bpv.PRESET
     params, lut = load_model(args)
+    if args.brake_pipe and not args.json:
+        print(bpv.report(bpv.pipe_params(params)) + "\n")
     rows = validate(params, lut, scenarios, step_s=args.step_s, workers=workers)
     if args.json:
         print(json.dumps([dict(scenario=r.scenario.number, paper=r.scenario.paper,

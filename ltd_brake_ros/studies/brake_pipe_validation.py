@@ -26,11 +26,13 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ..inputs import BrakeParams, consist_from_mapping
+from ..inputs import BrakeParams, InputError, consist_from_mapping
 from ..physics import brakes
 from ..physics.brakes import EMERGENCY, SERVICE, CommandEvents, friction, uic_pipe
 from ..physics.equations import centre_offsets_m
 
+#: The shipped parameter file of the model.
+PRESET = "brake_params/uic_brake_pipe.yaml"
 #: Train lengths of the build-up comparison [m].
 LENGTHS_M = (300.0, 500.0, 700.0, 900.0, 1200.0, 1500.0)
 #: UIC 540 windows: emergency propagation [m/s], filling to 95 % and release to 10 % [s].
@@ -285,6 +287,20 @@ def paper_stops(params: BrakeParams, scenarios: Sequence[int] | None = None, *,
     from .runs import validate
 
     return validate(params, None, list(scenarios) if scenarios else None, workers=workers)
+
+
+def pipe_params(params: BrakeParams) -> uic_pipe.Params:
+    """The brake-pipe model's parameters of a run's brake parameters.
+
+    Raises
+    ------
+    InputError
+        The parameters name another brake model.
+    """
+    if params.model != uic_pipe.NAME:
+        raise InputError(params.source, "model", f"the brake-pipe validation needs model: "
+                         f"{uic_pipe.NAME}, this file's model is {params.model}")
+    return params.pneumatic
 
 
 def report(params: uic_pipe.Params | None = None) -> str:
