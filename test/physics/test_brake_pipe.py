@@ -102,3 +102,12 @@ def test_simulator_shows_pipe_and_cylinder_pressures_and_stops_the_train():
     while empirical.stop_time_s is None:
         empirical.advance(1.0)
     assert abs(sim.stopping_distance_m - empirical.stopping_distance_m) < 60.0
+
+
+def test_paper_emergency_stops_within_1_percent_of_ltdpolito():
+    # with the valve delay and inshot fitted to Tables 1-2 (the only values the UIC 540
+    # windows leave free), every stopping distance is within 1 % of the paper's model
+    rows = bpv.paper_stops(load_brake_params(bpv.PRESET))
+    assert len(rows) == 12
+    for r in rows:
+        assert abs(r.distance_error_percent) < 1.0, r.scenario.number

@@ -139,7 +139,7 @@ class Params:
     pipe_step_s: float = parameter(0.005, "internal step of the pipe on its fixed time grid "
                                    "(numerical) [s]", lo=1e-4, hi=0.05)
     # --- driver's brake valve
-    valve_delay_s: float = parameter(1.02, "delay from a command to the driver's brake valve "
+    valve_delay_s: float = parameter(1.26, "delay from a command to the driver's brake valve "
                                      "acting on the pipe (fitted to the LTDPoliTo distances of "
                                      "Tables 1-2) [s]", lo=0.0, hi=5.0)
     running_pressure_Pa: float = parameter(5.0 * BAR, "brake-pipe running pressure (UIC 540) "
@@ -200,17 +200,17 @@ class Params:
                                             "releases fully (fitted) [bar]",
                                             key="release_threshold_bar", scale=BAR,
                                             lo=0.0, hi=1.0)
-    inshot_pressure_Pa: float = parameter(0.6 * BAR, "cylinder pressure reached at the inshot "
-                                          "rate (fitted) [bar]", key="inshot_pressure_bar",
+    inshot_pressure_Pa: float = parameter(1.3 * BAR, "cylinder pressure reached at the inshot "
+                                          "rate (fitted to the peak forces of Tables 1-2) [bar]", key="inshot_pressure_bar",
                                           scale=BAR, lo=0.0, hi=2.0)
-    inshot_rate_Pa_s: float = parameter(3.0 * BAR, "cylinder filling rate during inshot "
+    inshot_rate_Pa_s: float = parameter(8.0 * BAR, "cylinder filling rate during inshot "
                                         "(fitted) [bar/s]", key="inshot_rate_bar_s", scale=BAR,
                                         lo=0.01, lo_open=True, hi=50.0)
-    fill_rate_P_Pa_s: float = parameter(0.9 * BAR, "cylinder filling rate after inshot in P "
+    fill_rate_P_Pa_s: float = parameter(0.65 * BAR, "cylinder filling rate after inshot in P "
                                         "(fitted to UIC 540 P filling 3-5 s) [bar/s]",
                                         key="fill_rate_P_bar_s", scale=BAR, lo=0.01,
                                         lo_open=True, hi=50.0)
-    fill_rate_G_Pa_s: float = parameter(0.14 * BAR, "cylinder filling rate after inshot in G "
+    fill_rate_G_Pa_s: float = parameter(0.11 * BAR, "cylinder filling rate after inshot in G "
                                         "(fitted to UIC 540 G filling 18-30 s) [bar/s]",
                                         key="fill_rate_G_bar_s", scale=BAR, lo=0.001,
                                         lo_open=True, hi=50.0)
@@ -264,9 +264,9 @@ class Params:
 FITTABLE = {
     "valve_delay": Fittable("valve_delay_s", "s", 0.0, 3.0, 1.0,
                             "delay from a command to the driver's brake valve acting"),
-    "fill_rate_P": Fittable("fill_rate_P_Pa_s", "Pa/s", 0.5 * BAR, 3.0 * BAR, 1.0 * BAR,
+    "fill_rate_P": Fittable("fill_rate_P_Pa_s", "Pa/s", 0.4 * BAR, 3.0 * BAR, 1.0 * BAR,
                             "cylinder filling rate after inshot in P (UIC 540: 3-5 s)"),
-    "inshot": Fittable("inshot_pressure_Pa", "Pa", 0.0, 1.5 * BAR, 0.5 * BAR,
+    "inshot": Fittable("inshot_pressure_Pa", "Pa", 0.0, 2.0 * BAR, 1.0 * BAR,
                        "cylinder pressure reached at the inshot rate"),
     "hose_loss": Fittable("hose_loss_coefficient", "-", 0.0, 30.0, 10.0,
                           "concentrated loss coefficient of a hose coupling"),
