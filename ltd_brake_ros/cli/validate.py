@@ -13,8 +13,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "validate", help="the paper's Tables 1-2 side by side with ours",
         description="Run the 12 scenarios of Tables 1-2 and print the UIC 544-1, Pugi and "
-                    "LTDPoliTo stopping distances, ours and the error, and the peak coupler "
-                    "forces with their positions.",
+                    "LTDPoliTo stopping distances, ours and the error, the peak draft and buff "
+                    "forces (the paper's, ours and the error, each at its coupler), and "
+                    "whether the targets are met: every peak draft within +/-10 % and every "
+                    "peak buff within +/-20 % of the paper, positions within +/-2 couplers, "
+                    "distances within 0.1 % (100 km/h) and 0.7 % (50 km/h) of LTDPoliTo.",
         epilog=CONVENTIONS, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scenarios", metavar="LIST", help="subset, e.g. 1-6 or 2,6,12 (default: all)")
     p.add_argument("--jobs", type=int, metavar="N", help="parallel processes (default: all cores)")
@@ -44,19 +47,40 @@ def validation_table(rows) -> str:
     str
     """
     head = ("| No. | train | V0 km/h | λ % | UIC m | Pugi m | LTDPoliTo m | ours m | vs LTDPoliTo | "
-            "vs UIC | draft kN@c paper | ours | buff kN@c paper | ours |")
+            "vs UIC | draft kN@c paper | ours | error | buff kN@c paper | ours | error |")
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in rows:
         p, q = r.scenario.paper, r.result
         uic_err = r.uic_error_percent
+        draft_err = 100 * (q.peak_draft_kN - p["draft_kN"]) / p["draft_kN"]
+        buff_err = 100 * (-q.peak_buff_kN - p["buff_kN"]) / p["buff_kN"]
         lines.append(
             f"| {r.scenario.number} | {q.consist} "
             f"| {q.initial_speed_kmh:g} | {q.braked_weight_percent:.1f} | {_fmt(p.get('uic_m'), '.1f')} "
             f"| {p['pugi_m']:g} | {p['ltdpolito_m']:.1f} | {q.stopping_distance_m:.1f} "
             f"| {r.distance_error_percent:+.2f} % | {'NA' if uic_err is None else f'{uic_err:+.2f} %'} "
             f"| {p['draft_kN']}@{p['draft_coupler']} | {q.peak_draft_kN:.0f}@{q.peak_draft_coupler} "
-            f"| {p['buff_kN']}@{p['buff_coupler']} | {-q.peak_buff_kN:.0f}@{q.peak_buff_coupler} |")
+            f"| {draft_err:+.1f} % "
+            f"| {p['buff_kN']}@{p['buff_coupler']} | {-q.peak_buff_kN:.0f}@{q.peak_buff_coupler} "
+            f"| {buff_err:+.1f} % |")
     return "\n".join(lines)
+
+
+def targets_lines(rows) -> list[str]:
+    """One line per target of :func:`~ltd_brake_ros.studies.calibration.validation_targets`.
+
+    Parameters
+    ----------
+    rows : list of ValidationRow
+
+    Returns
+    -------
+    list of str
+    """
+    from ..studies.calibration import validation_targets
+
+    return [f"  {'PASS' if ok else 'FAIL'}  {what}: {detail}"
+            for what, ok, detail in validation_targets(rows)]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -100,4 +124,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"largest stopping-distance error vs UIC 544-1 at 100 km/h: {max(uic):.2f} %")
     print("buff forces are listed as magnitudes; lambda is recomputed by Eq. 11 "
           "(row 4 prints 117.4 % in the paper, a typo for 115.1 %)")
+    print()
+    print("targets:")
+    print("\n".join(targets_lines(rows)))
     return 0
