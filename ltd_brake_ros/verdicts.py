@@ -34,6 +34,7 @@ import numpy as np
 
 from .physics.brakes import friction
 from .physics.constants import G, KMH_PER_MS
+from .physics.equations import jit
 
 __all__ = ["ADHESION_LIMIT", "BUFF_STRENGTH_N", "CRITERIA", "DRAFT_STRENGTH_N", "Criterion",
            "Exceedance", "TrainLimits", "Verdicts", "Watch", "adhesion_demand_at_rest",
@@ -532,12 +533,58 @@ def flags(verdicts: Verdicts) -> dict:
 # --------------------------------------------------------------------------- during a run
 
 
+@jit
+def _scan(t0, v0, t1, v1, nc, peak_draft, t_draft, peak_buff, t_buff, draft_lim, buff_lim,
+          lcf_lim, seen_draft, seen_buff, draft_kmh, buff_kmh, first_draft, first_buff,
+          first_lcf, speed, brake, weight, adh_force_lim, adhesion, adh_t, adh_kmh, first_adh):
+    """One chunk of :class:`Watch` in one pass (arrays updated in place).
+
+    Returns the number of limits exceeded for the first time.
+    """
+    span = t1 - t0
+    new = 0
+    for j in range(nc):
+        p = peak_draft[j]
+        if p > draft_lim[j]:
+            if p > seen_draft[j]:  # the worst moved into this chunk: the head's speed then
+                seen_draft[j] = p
+                a = (t_draft[j] - t0) / span if span > 0.0 else 1.0
+                draft_kmh[j] = (v0 + (v1 - v0) * a) * KMH_PER_MS
+            if first_draft[j] < 0.0:
+                first_draft[j] = t_draft[j]
+                new += 1
+        b = -peak_buff[j]
+        if b > buff_lim[j] or b > lcf_lim[j]:
+            if b > seen_buff[j]:
+                seen_buff[j] = b
+                a = (t_buff[j] - t0) / span if span > 0.0 else 1.0
+                buff_kmh[j] = (v0 + (v1 - v0) * a) * KMH_PER_MS
+            if b > buff_lim[j] and first_buff[j] < 0.0:
+                first_buff[j] = t_buff[j]
+                new += 1
+            if b > lcf_lim[j] and first_lcf[j] < 0.0:
+                first_lcf[j] = t_buff[j]
+                new += 1
+    for i in range(brake.shape[0]):
+        f = abs(brake[i])
+        d = f / weight[i]
+        if d > adhesion[i]:
+            adhesion[i] = d
+            adh_t[i] = t1
+            adh_kmh[i] = abs(speed[i]) * KMH_PER_MS
+        if f > adh_force_lim[i] and first_adh[i] < 0.0:
+            first_adh[i] = t1
+            new += 1
+    return new
+
+
 class Watch:
     """Follows a running simulation for :class:`~ltd_brake_ros.simulator.Simulator`.
 
-    Coupler peaks are the kernel's running extremes; this adds, per :meth:`check` (once per
-    chunk, a few vectorised comparisons), the first exceedance of each limit, the speed at
-    each exceeding coupler's worst, and each vehicle's largest adhesion demand.
+    Coupler peaks are the kernel's running extremes; once per chunk one compiled pass
+    (:meth:`check`) adds the first exceedance of each limit, the head's speed at each
+    exceeding coupler's worst (interpolated within the chunk) and each vehicle's largest
+    adhesion demand (at the chunk ends, and as the train comes to rest: :meth:`at_rest`).
 
     Parameters
     ----------
@@ -549,6 +596,8 @@ class Watch:
         nc, n = limits.draft_strength_N.size, limits.adhesion_limit.size
         self.first_time_s = {name: np.full(n if name == "adhesion" else nc, -1.0)
                              for name in CRITERIA}
+        self._reported = {name: np.zeros(n if name == "adhesion" else nc, bool)
+                          for name in CRITERIA}
         self.draft_speed_kmh = np.zeros(nc)
         self.buff_speed_kmh = np.zeros(nc)
         self._draft_seen = np.zeros(nc)
@@ -557,7 +606,7 @@ class Watch:
         self.adhesion_time_s = np.zeros(n)
         self.adhesion_speed_kmh = np.zeros(n)
         self._adhesion_force_N = limits.adhesion_limit * limits.weight_N
-        self._buff_limit = np.minimum(limits.buff_strength_N, limits.endurable_lcf_N)
+        self._no_weight = np.ones(n)
 
     def copy(self) -> "Watch":
         """An independent copy (the limits are shared: never mutated)."""
@@ -566,12 +615,6 @@ class Watch:
                                  else v.copy() if isinstance(v, np.ndarray) else v)
                              for k, v in self.__dict__.items()})
         return new
-
-    def _speed(self, t, t0, v0, t1, v1):
-        """Head speed at times t within the chunk [t0, t1], linear [km/h]."""
-        if t1 <= t0:
-            return np.full(np.shape(t), v1 * KMH_PER_MS)
-        return (v0 + (v1 - v0) * (np.asarray(t) - t0) / (t1 - t0)) * KMH_PER_MS
 
     def check(self, t0: float, v0: float, t1: float, v1: float, kin, vehicle_speed_m_s,
               brake_force_N) -> list[tuple]:
@@ -591,53 +634,37 @@ class Watch:
         list of (time_s, detail)
             Limits exceeded for the first time in this chunk (see :meth:`event_detail`).
         """
+        lim, first = self.limits, self.first_time_s
+        new = _scan(t0, v0, t1, v1, self._draft_seen.size, kin.peak_draft_N,
+                    kin.peak_draft_time_s, kin.peak_buff_N, kin.peak_buff_time_s,
+                    lim.draft_strength_N, lim.buff_strength_N, lim.endurable_lcf_N,
+                    self._draft_seen, self._buff_seen, self.draft_speed_kmh,
+                    self.buff_speed_kmh, first["draft_strength"], first["buff_strength"],
+                    first["endurable_lcf"], vehicle_speed_m_s, brake_force_N, lim.weight_N,
+                    self._adhesion_force_N, self.adhesion, self.adhesion_time_s,
+                    self.adhesion_speed_kmh, first["adhesion"])
+        return self._events(kin) if new else []
+
+    def _events(self, kin) -> list[tuple]:
+        """The limits first exceeded since the last call, as (time_s, detail) (kin None:
+        adhesion only)."""
         out = []
         nc = self._draft_seen.size
-        draft = kin.peak_draft_N[:nc]
-        if nc and (draft > self.limits.draft_strength_N).any():
-            out += self._couplers("draft_strength", draft, kin.peak_draft_time_s[:nc],
-                                  self.limits.draft_strength_N, self._draft_seen,
-                                  self.draft_speed_kmh, (t0, v0, t1, v1))
-        buff = kin.peak_buff_N[:nc]
-        if nc and (-buff > self._buff_limit).any():
-            for name in ("buff_strength", "endurable_lcf"):
-                out += self._couplers(name, -buff, kin.peak_buff_time_s[:nc],
-                                      self.limits.of(name), self._buff_seen,
-                                      self.buff_speed_kmh, (t0, v0, t1, v1))
-        force = np.abs(brake_force_N)
-        if self.adhesion.size:
-            out += self._adhesion(force / self.limits.weight_N, t1,
-                                  np.abs(vehicle_speed_m_s) * KMH_PER_MS,
-                                  force > self._adhesion_force_N)
+        values = {"adhesion": self.adhesion}
+        if kin is not None:
+            values.update({"draft_strength": kin.peak_draft_N[:nc],
+                           "buff_strength": -kin.peak_buff_N[:nc],
+                           "endurable_lcf": -kin.peak_buff_N[:nc]})
+        speeds = {"draft_strength": self.draft_speed_kmh, "buff_strength": self.buff_speed_kmh,
+                  "endurable_lcf": self.buff_speed_kmh, "adhesion": self.adhesion_speed_kmh}
+        for name in values:
+            first, done = self.first_time_s[name], self._reported[name]
+            for j in np.flatnonzero((first >= 0.0) & ~done):
+                done[j] = True
+                out.append((float(first[j]), self.event_detail(
+                    name, int(j), float(values[name][j]), float(self.limits.of(name)[j]),
+                    float(speeds[name][j]))))
         return out
-
-    def _couplers(self, name, peak, peak_t, limit, seen, speed, chunk) -> list[tuple]:
-        over = np.flatnonzero(peak > limit)
-        grown = over[peak[over] > seen[over]]
-        if grown.size:  # the worst moved into this chunk: the speed then
-            speed[grown] = self._speed(peak_t[grown], *chunk)
-            seen[grown] = peak[grown]
-        first = self.first_time_s[name]
-        new = over[first[over] < 0.0]
-        first[new] = peak_t[new]
-        return [(float(peak_t[j]), self.event_detail(name, int(j), float(peak[j]),
-                                                    float(limit[j]), float(speed[j])))
-                for j in new]
-
-    def _adhesion(self, demand, t, speed_kmh, over) -> list[tuple]:
-        up = demand > self.adhesion
-        if up.any():
-            self.adhesion[up] = demand[up]
-            self.adhesion_time_s[up] = t
-            self.adhesion_speed_kmh[up] = speed_kmh[up]
-        if not over.any():
-            return []
-        first = self.first_time_s["adhesion"]
-        new = np.flatnonzero(over & (first < 0.0))
-        first[new] = t
-        return [(t, self.event_detail("adhesion", int(i), float(demand[i]),
-                                      float(self.limits.adhesion_limit[i]), float(speed_kmh[i])))
-                for i in new]
 
     def at_rest(self, t: float, demand_at_rest) -> list[tuple]:
         """Take the adhesion demand as the train comes to rest into account (see module).
@@ -655,8 +682,15 @@ class Watch:
             As :meth:`check`.
         """
         demand = np.asarray(demand_at_rest, float)
-        return self._adhesion(demand, t, np.zeros(demand.size),
-                              demand > self.limits.adhesion_limit)
+        new = _scan(t, 0.0, t, 0.0, 0, self._draft_seen, self._draft_seen, self._buff_seen,
+                    self._buff_seen, self._draft_seen, self._draft_seen, self._draft_seen,
+                    self._draft_seen, self._buff_seen, self.draft_speed_kmh,
+                    self.buff_speed_kmh, self.first_time_s["draft_strength"],
+                    self.first_time_s["buff_strength"], self.first_time_s["endurable_lcf"],
+                    np.zeros(demand.size), demand, self._no_weight,
+                    self.limits.adhesion_limit, self.adhesion, self.adhesion_time_s,
+                    self.adhesion_speed_kmh, self.first_time_s["adhesion"])
+        return self._events(None) if new else []
 
     @staticmethod
     def event_detail(name: str, index: int, value: float, limit: float,
