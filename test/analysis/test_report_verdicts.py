@@ -19,6 +19,7 @@ from ltd_brake_ros.verdicts import limits_metadata
 
 COAST_S = 1.0  # the demo coasts before the emergency command
 CHUNK_S = 0.05
+AFTER_STOP_S = 1.0  # recorded on after the stop, as the node does, until all stand still
 
 
 def record(folder, sim, *, limits: bool):
@@ -40,7 +41,7 @@ def record(folder, sim, *, limits: bool):
         w.write("/t/brake_command", serialize_message(Bool(data=True)),
                 round((snap.time_s - CHUNK_S) * 1e9))
         publish(snap)
-        while sim.stop_time_s is None:
+        while sim.stop_time_s is None or sim.time_s < sim.stop_time_s + AFTER_STOP_S:
             publish(sim.advance(CHUNK_S))
     return folder
 
