@@ -22,8 +22,8 @@ to rest: the simulator evaluates it then, at the block forces of the stop and sp
 (:func:`adhesion_demand_at_rest`), besides at the end of every chunk.
 
 The simulator (:class:`Watch`) raises an event when a limit is first exceeded; ``ltd-brake
-simulate``, the run report (:func:`judge` on recorded peaks) and the campaign flags
-(:func:`flags`) use this module alike.
+simulate``, the run report (:func:`judge` on recorded peaks), the campaign flags (:func:`flags`)
+and the plant's diagnostics (:func:`diagnostic_values`) use this module alike.
 """
 from __future__ import annotations
 
@@ -38,7 +38,8 @@ from .physics.equations import jit
 
 __all__ = ["ADHESION_LIMIT", "BUFF_STRENGTH_N", "CRITERIA", "DRAFT_STRENGTH_N", "Criterion",
            "Exceedance", "TrainLimits", "Verdicts", "Watch", "adhesion_demand_at_rest",
-           "flags", "judge", "limits_from_metadata", "limits_metadata", "train_limits"]
+           "default_coupler_limits", "diagnostic_values", "flags", "judge",
+           "limits_from_metadata", "limits_metadata", "train_limits"]
 
 #: Default draft strength of a coupling [N]: the minimum breaking load of the standard screw
 #: coupling, 850 kN (EN 15566, UIC 520), below the draw hook's 1000 kN: the weaker part breaks.
@@ -510,6 +511,30 @@ def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_k
                                first("adhesion", demand.size), 0,
                                limits.origin.get("adhesion", "")))
     return Verdicts(tuple(rows))
+
+
+def diagnostic_values(verdicts: Verdicts) -> dict:
+    """Key/values of the verdicts for a ``diagnostic_msgs/DiagnosticStatus`` (strings).
+
+    Parameters
+    ----------
+    verdicts : Verdicts
+        E.g. :meth:`Simulator.verdicts() <ltd_brake_ros.simulator.Simulator.verdicts>`.
+
+    Returns
+    -------
+    dict of str to str
+        ``verdicts`` (``PASS``/``FAIL``), then per criterion ``verdict_<name>``: its status
+        and, on FAIL, how many couplers or vehicles are beyond their limit and the worst.
+    """
+    out = {"verdicts": "PASS" if verdicts.passed else "FAIL"}
+    for c in verdicts.criteria:
+        text = c.status
+        if c.exceedances:
+            text += (f": {len(c.exceedances)} {CRITERIA[c.name][2]}(s) beyond the limit, worst "
+                     f"{c.exceedances[0].describe()}")
+        out[f"verdict_{c.name}"] = text
+    return out
 
 
 def flags(verdicts: Verdicts) -> dict:

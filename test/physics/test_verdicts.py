@@ -86,6 +86,11 @@ def test_every_coupler_beyond_its_strength_is_named_once_with_its_worst():
     worst = v.exceedances[0]
     assert worst.value == sim.peak_draft_N.max()
     assert "coupler" in worst.describe() and "km/h" in worst.describe()
+    diag = verdicts.diagnostic_values(sim.verdicts())
+    assert diag["verdicts"] == "FAIL" and diag["verdict_endurable_lcf"] == "not assessed"
+    assert diag["verdict_draft_strength"].startswith(f"FAIL: {len(beyond)} coupler(s)")
+    assert f"coupler {worst.number}:" in diag["verdict_draft_strength"]
+    assert all(isinstance(x, str) for x in diag.values())
 
 
 def test_the_speed_of_an_exceedance_is_the_trains_then():
