@@ -95,6 +95,9 @@ def resistance_N(mass_kg, axles, speed_m_s):
 def lut_segment(table, x):
     """Index k of the table segment [table[0, k], table[0, k+1]] holding x; -1 below, m-1 above.
 
+    A binary search whose trip count depends on the table's size only, each halving a
+    conditional move: no branch to mispredict in the kernel's innermost loops.
+
     Parameters
     ----------
     table : ndarray, shape (rows, m)
@@ -110,13 +113,12 @@ def lut_segment(table, x):
         return -1
     if x >= table[0, n - 1]:
         return n - 1
-    lo, hi = 0, n - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if table[0, mid] <= x:
-            lo = mid
-        else:
-            hi = mid
+    # the segment lies in [lo, lo + size)
+    lo, size = 0, n - 1
+    while size > 1:
+        half = size >> 1
+        lo = lo + half if table[0, lo + half] <= x else lo
+        size -= half
     return lo
 
 

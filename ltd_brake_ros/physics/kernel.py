@@ -505,27 +505,26 @@ def _all_finite(a):
 
 
 @jit
-def _solve_tridiagonal(dvec, cj, g, off, dwork, du):
+def _solve_tridiagonal(dvec, cj, g, dwork, du):
     """Solve J du = -g, J = diag(dvec) + sum over couplers of cj * (e_j - e_j+1)(e_j - e_j+1)^T.
 
     J is tridiagonal, symmetric positive definite (an M-matrix): the Thomas algorithm needs no
-    pivoting. ``off`` and ``dwork`` are scratch arrays.
+    pivoting. Assembly and forward elimination are one pass; ``dwork`` is scratch.
     """
     n = dvec.shape[0]
-    for i in range(n):
-        dwork[i] = dvec[i]
-        du[i] = -g[i]
-    for j in range(n - 1):
-        off[j] = -cj[j]
-        dwork[j] += cj[j]
-        dwork[j + 1] += cj[j]
+    dwork[0] = dvec[0] + cj[0] if n > 1 else dvec[0]
+    du[0] = -g[0]
     for i in range(1, n):
-        m = off[i - 1] / dwork[i - 1]
-        dwork[i] -= m * off[i - 1]
-        du[i] -= m * du[i - 1]
+        c = cj[i - 1]
+        d = dvec[i] + c
+        if i < n - 1:
+            d += cj[i]
+        m = -c / dwork[i - 1]
+        dwork[i] = d - m * -c
+        du[i] = -g[i] - m * du[i - 1]
     du[n - 1] /= dwork[n - 1]
     for i in range(n - 2, -1, -1):
-        du[i] = (du[i] - off[i] * du[i + 1]) / dwork[i]
+        du[i] = (du[i] - -cj[i] * du[i + 1]) / dwork[i]
 
 
 #: Shortest step the error control may take, as a fraction of the nominal step.
@@ -659,7 +658,7 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
         res_a[i, 2] = a2
     w = _Work(np.empty(n), np.empty(n), np.empty(max(nc, 1)), fc, np.empty(n))
     fair = w.fair
-    scratch = _Scratch(np.empty(n), np.empty(n), np.empty(max(nc, 1)), np.empty(n),
+    scratch = _Scratch(np.empty(n), np.empty(n), np.empty(n),
                        _Work(np.empty(n), np.empty(n), np.empty(max(nc, 1)),
                              np.empty(max(nc, 1)), np.empty(n)))
     fx = np.empty(n)
@@ -672,6 +671,7 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
     save_kind = np.empty_like(brake_state.level_kind)
     save_next = np.empty_like(brake_state.next_event)
     save_extra, save_ftr = np.empty_like(brake_state.extra), np.empty_like(ftr)
+    retried = False  # the step being tried follows a rejection
     for _step in range(nsteps):
         t_end = t + h
         tc = t
@@ -749,12 +749,16 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
                 else:
                     shrink = max(MAX_SHRINK, SAFETY * ratio ** (-1.0 / (order + 1.0)))
                 control[NEXT_STEP] = max(hs * shrink, h_min)
+                retried = True
                 continue
             # ---- accept
             if adaptive:
                 grow = MAX_GROWTH
                 if ratio > 0.0:
                     grow = min(MAX_GROWTH, SAFETY * ratio ** (-1.0 / (order + 1.0)))
+                if retried:
+                    grow = min(grow, 1.0)  # no growth straight after a rejection
+                retried = False
                 control[NEXT_STEP] = min(hs * grow, h)
             stats.steps += 1
             if stats.smallest_step_s == 0.0 or hs < stats.smallest_step_s:
@@ -812,7 +816,6 @@ class _Scratch(NamedTuple):
 
     ut: np.ndarray
     du: np.ndarray
-    off: np.ndarray
     dwork: np.ndarray
     trial: _Work
 
@@ -825,7 +828,7 @@ def _newton(u, s, cp, fr_arrays, w, scratch, max_iter, stats):
     ``NOT_FINITE``.
     """
     g, diag, cj, fc = w.g, w.diag, w.cj, w.fc
-    ut, du, off, dtmp, trial = scratch.ut, scratch.du, scratch.off, scratch.dwork, scratch.trial
+    ut, du, dtmp, trial = scratch.ut, scratch.du, scratch.dwork, scratch.trial
     cp_model, cp_table, cp_coef, band = cp.model, cp.table, cp.coef, cp.band_m_s
     xhat, bh, v_stick = s.xhat, s.bh, s.v_stick
     n = u.shape[0]
@@ -843,7 +846,7 @@ def _newton(u, s, cp, fr_arrays, w, scratch, max_iter, stats):
             stats.newton_iterations += it
             return NEWTON_FAILED
         it += 1
-        _solve_tridiagonal(diag, cj, g, off, dtmp, du)
+        _solve_tridiagonal(diag, cj, g, dtmp, du)
         if it <= FAST_ITERATIONS and band > 0.0:
             # a coupler whose deflection speed would jump across its whole steep band
             # most likely ends inside it: solve again with that coupler on the band's line
@@ -860,7 +863,7 @@ def _newton(u, s, cp, fr_arrays, w, scratch, max_iter, stats):
                     cj[j] = bh * kd + kr
                     again = True
             if again:
-                _solve_tridiagonal(diag, cj, g, off, dtmp, du)
+                _solve_tridiagonal(diag, cj, g, dtmp, du)
         if it <= FAST_ITERATIONS:
             # cheap safeguards, enough for almost every step: do not let a coupler jump
             # across its whole steep band, nor a vehicle across its standstill band
