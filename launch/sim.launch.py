@@ -51,8 +51,8 @@ PARAMETER_ARGUMENTS = {
     "record": ("record", "bool",
                "Record everything published and received to an MCAP bag folder"),
     "record_dir": ("record_dir", "str",
-                   "Bag folder (must not exist or be empty); empty = runs/run_<date>-<time> "
-                   "in the working directory"),
+                   "Bag folder, which must not exist or be empty (the node's default: "
+                   "runs/run_<date>-<time> in the working directory)"),
 }
 #: Accepted values of the arguments that have a fixed set (empty = the file's value).
 CHOICES = {"bool": ["", "true", "false"],
