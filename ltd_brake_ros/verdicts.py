@@ -452,10 +452,10 @@ def _criterion(name, values, limits, times, speeds, first, element_base, origin)
     rel = (values[over] - limits[over]) / limits[over]
     over = over[np.argsort(-rel, kind="stable")]
     element = CRITERIA[name][2]
-    ex = tuple(Exceedance(name, element, int(j) + element_base, float(values[j]),
-                          float(limits[j]), float(times[j]), float(speeds[j]),
-                          float(first[j]) if first[j] >= 0.0 else float(times[j]))
-               for j in over)
+    first_seen = np.where(first[over] >= 0.0, first[over], times[over])
+    ex = tuple(Exceedance(name, element, *row) for row in zip(
+        (over + element_base).tolist(), values[over].tolist(), limits[over].tolist(),
+        times[over].tolist(), speeds[over].tolist(), first_seen.tolist()))
     return Criterion(name, True, float(limits[finite].min()), float(limits[finite].max()),
                      origin, float(values[k]), k + element_base, float(times[k]), ex)
 
