@@ -71,9 +71,11 @@ def main() -> int:
         repeats = 1 if consist.n > 500 else args.repeats
         e_best, _, (_, e_t, e_d, e_fail) = best_stop(consist, empirical, repeats)
         p_best, p_worst, (_, p_t, p_d, p_fail) = best_stop(consist, pipe, repeats)
-        t0 = time.perf_counter()
-        brake_history(consist, pipe.pneumatic, [(0.0, 1.0, EMERGENCY)], p_t, sample_s=1.0)
-        alone = time.perf_counter() - t0
+        alone = float("inf")
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            brake_history(consist, pipe.pneumatic, [(0.0, 1.0, EMERGENCY)], p_t, sample_s=1.0)
+            alone = min(alone, time.perf_counter() - t0)
         print(f"| {name} | {consist.n} | {e_t / e_best:.0f} | {p_t / p_best:.0f} "
               f"({p_t / p_worst:.0f}-{p_t / p_best:.0f}) | {TARGETS[name]:.0f} "
               f"| {p_t / alone:.0f} | {e_d:.1f} | {p_d:.1f} | {int(e_fail) + int(p_fail)} |")
