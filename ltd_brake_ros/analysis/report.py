@@ -17,11 +17,11 @@ Topics used (any namespace; the first one holding ``vehicles/speed`` is analysed
 ==============================  ===========================================================
 
 Definitions: the emergency command is the first ``brake_command`` that is true (its record
-time), and the speed at it the head's, interpolated between samples; the train has stopped at the first recorded ``vehicles/speed`` sample at or after the
-command in which every vehicle is at most ``STANDSTILL_M_S`` (1 mm/s, as the simulator
-counts a stop); the stopping distance is the head's
-position then minus its position at the command (interpolated between samples). Peak forces
-are the extremes over the whole recording.
+time), and the speed at it the head's, interpolated between samples; the train has stopped at
+the first recorded ``vehicles/speed`` sample at or after the command in which every vehicle is
+at most ``STANDSTILL_M_S`` (1 mm/s, as the simulator counts a stop); the stopping distance is
+the head's position then minus its position at the command (interpolated between samples).
+Peak forces are the extremes over the whole recording.
 
 Samples are read in log-time order and checked (:mod:`.samples`): a plant topic of another
 type, a payload that does not decode, a non-finite value, arrays that do not describe one train

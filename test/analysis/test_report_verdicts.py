@@ -7,7 +7,7 @@ import pytest
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Bool
 
-from bag_helpers import ARRAYS, F64, array_msg, declare_topics, snapshot_arrays
+from bag_helpers import ARRAYS, array_msg, declare_topics, snapshot_arrays
 from ltd_brake_ros.analysis.plots import write_plots
 from ltd_brake_ros.analysis.report import analyse
 from ltd_brake_ros.inputs import get_scenario
