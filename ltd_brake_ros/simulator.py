@@ -309,7 +309,7 @@ class SimulatorState:
     brakes : BrakeState
         The brake model's state.
     events : CommandEvents
-        Brake commands issued at the head that some vehicle has yet to receive.
+        Brake commands issued (at the venting vehicle) that some vehicle has yet to receive.
     stats : ndarray
         Counters, one :data:`~ltd_brake_ros.physics.kernel.STATS_DTYPE` record.
     reported_out_of_range : ndarray of bool
@@ -534,7 +534,8 @@ class Simulator:
 
     @property
     def brake_delay_s(self) -> np.ndarray:
-        """When a brake command issued at the head reaches each vehicle, after it [s]."""
+        """When a brake command reaches each vehicle, after it was issued [s] (Eq. 6 from the
+        venting vehicle, :attr:`Consist.venting_vehicle <ltd_brake_ros.inputs.Consist>`)."""
         return self.model.brakes.delay_s
 
     @property

@@ -67,7 +67,7 @@ class BrakeState(NamedTuple):
 
 
 class CommandEvents(NamedTuple):
-    """Brake commands issued at the head, oldest first.
+    """Brake commands issued by the driver's brake valve, oldest first.
 
     Attributes
     ----------
