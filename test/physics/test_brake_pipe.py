@@ -111,3 +111,20 @@ def test_paper_emergency_stops_within_1_percent_of_ltdpolito():
     assert len(rows) == 12
     for r in rows:
         assert abs(r.distance_error_percent) < 1.0, r.scenario.number
+
+
+def test_radio_distributed_power_brakes_the_rear_sooner():
+    from ltd_brake_ros.inputs import consist_from_mapping
+
+    consist = consist_from_mapping({"name": "dp", "vehicles": [
+        {"type": "E402B"}, {"type": "Shimmns", "count": 60, "mass_t": 80.0},
+        {"type": "E402B"}]}, "<test>")
+    dp = dataclasses.replace(PARAMS, distributed_power=True, radio_delay_s=0.5)
+    head_only = bpv.onset_times_s(bpv.brake_history(consist, PARAMS, [(0.0, 1.0, EMERGENCY)], 8.0))
+    onset = bpv.onset_times_s(bpv.brake_history(consist, dp, [(0.0, 1.0, EMERGENCY)], 8.0))
+    # the rear locomotive vents the pipe 0.5 s after the lead: the rear brakes that much after
+    # the head instead of a whole train length (about 780 m at 250-280 m/s) later
+    assert onset[-1] == pytest.approx(onset[0] + 0.5, abs=0.1)
+    assert head_only[-1] - head_only[0] > 2.5
+    assert onset[:31] == pytest.approx(head_only[:31], abs=0.02)  # the front half as before
+    assert np.all(onset <= head_only + 1e-9)

@@ -1,4 +1,4 @@
-"""The UIC brake pipe and distributors, fluid-empirical: air flow in the pipe, valve characteristics.
+"""The UIC brake pipe and distributors, fluid-empirical: pipe air flow, valve characteristics.
 
 The brake pipe is a 1-D isothermal compressible flow along the train (continuity and momentum,
 the convective term neglected at the pipe's low Mach numbers), one finite volume per vehicle
@@ -22,6 +22,9 @@ c dt / dx ~ 0.1) halving the step moves the propagation speeds with acceleration
 stopping distances of Tables 1-2 by under 1 % and 0.1 % (the propagation without chambers,
 a slow diffusive drop crossing a threshold, by about 10 %).
 
+With ``distributed_power`` every other locomotive has a driver's brake valve of its own that
+repeats the venting vehicle's commands ``radio_delay_s`` later (radio distributed power).
+
 Distributors (UIC 540 behaviour, measured characteristics rather than valve geometry): a control
 reservoir that follows the pipe through a choke while released (insensitivity to slow drops),
 application when the pipe is more than ``application_threshold`` below it, a one-shot
@@ -43,8 +46,8 @@ steps from the stored grid point to the last one at or before t1, so any split o
 bit-identical results. A step uses the commands issued before its end, all known to the advance
 that computes it (commands are issued between advances, at their ends).
 
-``delay_s`` is the earliest a command can reach each vehicle's distributor: the valve delay
-plus the distance from the venting vehicle over the isothermal sound speed.
+``delay_s`` is the earliest a command can reach each vehicle's distributor: over the driver's
+brake valves, the least valve delay plus distance over the isothermal sound speed.
 """
 from __future__ import annotations
 
@@ -88,7 +91,8 @@ S_A_QS, S_V_QS, S_ACC_ON, S_ACC_THETA, S_ACC_TAU, S_A_ACC, S_ACC_CLOSE = (35, 36
 S_SUPPLY_BAND = 42
 S_VALVE_DELAY = 45
 S_EM_OPEN = 46
-N_COEF = 47
+C_VALVE = 47  # delay from a command to this vehicle's driver's brake valve acting [s]; -1: none
+N_COEF = 48
 
 # ---- columns of BrakeState.extra
 X_P = 0  # pipe pressure, absolute [Pa]
@@ -103,9 +107,11 @@ X_ACC = 8  # accelerator: 0 armed, 1 venting, 2 spent
 X_QS = 9  # quick-service chamber, absolute [Pa]
 X_QS_STATE = 10  # quick service: 0 armed, 1 drawing, 2 done
 X_GRID = 11  # row 0: index of the grid point reached (-1: none yet)
-X_ER = 12  # row 0: equalising reservoir of the driver's brake valve, absolute [Pa]
-X_T_ACT = 13  # row 0: when the current command reached the driver's brake valve [s]
-N_EXTRA = 14
+X_ER = 12  # equalising reservoir of the vehicle's driver's brake valve, absolute [Pa]
+X_T_ACT = 13  # when the current command reached the vehicle's driver's brake valve [s]
+X_MODE = 14  # position of the vehicle's driver's brake valve in the current step
+X_EM_OPEN = 15  # opening of its emergency orifice in the current step [-]
+N_EXTRA = 16
 
 # driver's brake valve positions
 _RELEASE, _SERVICE, _EMERGENCY = 0, 1, 2
@@ -177,6 +183,10 @@ class Params:
                                                "reservoir rises on release (fitted) [bar/s]",
                                                key="equalising_rate_up_bar_s", scale=BAR,
                                                lo=0.01, lo_open=True, hi=20.0)
+    distributed_power: bool = parameter(False, "locomotives other than the venting vehicle "
+                                        "repeat its driver's brake valve by radio")
+    radio_delay_s: float = parameter(0.5, "delay of the radio repeating the commands at the "
+                                     "other locomotives (assumed) [s]", lo=0.0, hi=10.0)
     # --- distributor
     application_threshold_Pa: float = parameter(0.27 * BAR, "pipe drop below the control "
                                                 "reservoir that starts an application (UIC "
@@ -203,8 +213,8 @@ class Params:
                                             key="release_threshold_bar", scale=BAR,
                                             lo=0.0, hi=1.0)
     inshot_pressure_Pa: float = parameter(1.3 * BAR, "cylinder pressure reached at the inshot "
-                                          "rate (fitted to the peak forces of Tables 1-2) [bar]", key="inshot_pressure_bar",
-                                          scale=BAR, lo=0.0, hi=2.0)
+                                          "rate (fitted to the peak forces of Tables 1-2) [bar]",
+                                          key="inshot_pressure_bar", scale=BAR, lo=0.0, hi=2.0)
     inshot_rate_Pa_s: float = parameter(8.0 * BAR, "cylinder filling rate during inshot "
                                         "(fitted) [bar/s]", key="inshot_rate_bar_s", scale=BAR,
                                         lo=0.01, lo_open=True, hi=50.0)
@@ -332,8 +342,16 @@ def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  #
     }
     for col, value in scalars.items():
         coef[:, col] = value
+    coef[:, C_VALVE] = -1.0
+    coef[vent, C_VALVE] = p.valve_delay_s
+    if p.distributed_power:
+        for i, v in enumerate(vs):
+            if v.traction is not None and i != vent:
+                coef[i, C_VALVE] = p.valve_delay_s + p.radio_delay_s
     centre = centre_offsets_m(length)
-    delay = p.valve_delay_s + np.abs(centre - centre[vent]) / math.sqrt(rt)
+    valves = np.flatnonzero(coef[:, C_VALVE] >= 0.0)
+    reach = np.abs(centre[:, None] - centre[valves][None, :]) / math.sqrt(rt)
+    delay = np.min(coef[valves, C_VALVE][None, :] + reach, axis=1)
     return BrakeArrays(ID, delay, np.ascontiguousarray(force_max_N, float), coef)
 
 
@@ -399,14 +417,14 @@ def _clip01(x):
 
 
 @jit
-def _valve_branch(p, coef, extra, mode, em_open):
-    """Outflow through the driver's brake valve at pipe pressure ``p`` [Pa abs] and its
-    derivative, in orifice units (see :func:`orifice`); negative: feed."""
+def _valve_branch(p, coef, mode, em_open, per):
+    """Outflow through a driver's brake valve in position ``mode`` at pipe pressure ``p`` and
+    equalising-reservoir pressure ``per`` [Pa abs], and its derivative, in orifice units (see
+    :func:`orifice`); negative: feed."""
     if mode == _EMERGENCY:
         m, d, _ = orifice(p, P_ATM, em_open * coef[0, S_A_EMERG])
         return m, d
     band = coef[0, S_BAND]
-    per = extra[0, X_ER]
     if p > per:
         s = _clip01((p - per) / band)
         m, d, _ = orifice(p, P_ATM, coef[0, S_A_VENT])
@@ -443,7 +461,7 @@ def _distributor_branch(i, p, coef, extra):
 
 
 @jit
-def _pipe_step(coef, extra, mode, em_open, dt, a, b, c, rhs, work):
+def _pipe_step(coef, extra, dt, a, b, c, rhs, work):
     """One backward-Euler step of the pipe pressures and face flows (in ``extra``)."""
     n = coef.shape[0]
     area, diam, hose_k, mu, rt = (coef[0, S_AREA], coef[0, S_DIAM], coef[0, S_HOSE_K],
@@ -461,11 +479,11 @@ def _pipe_step(coef, extra, mode, em_open, dt, a, b, c, rhs, work):
             q, dq = _distributor_branch(i, p, coef, extra)
             b[i] += dq * kflow
             rhs[i] += (dq * p - q) * kflow
-    v = int(coef[0, S_VENT])
-    p = extra[v, X_P]
-    q, dq = _valve_branch(p, coef, extra, mode, em_open)
-    b[v] += dq * kflow
-    rhs[v] += (dq * p - q) * kflow
+        if coef[i, C_VALVE] >= 0.0:
+            q, dq = _valve_branch(p, coef, int(extra[i, X_MODE]), extra[i, X_EM_OPEN],
+                                  extra[i, X_ER])
+            b[i] += dq * kflow
+            rhs[i] += (dq * p - q) * kflow
     for f in range(n - 1):
         dx = coef[f, C_DX]
         m = extra[f, X_M]
@@ -511,46 +529,52 @@ def _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold):
     dt = coef[0, S_DT]
     tk = k * dt
     lvl, lkind, nxt = state.level, state.level_kind, state.next_event
-    # commands that act before the end of this step (issued a valve delay earlier) reach the
-    # driver's brake valve; within the step they act from their own time on
-    j = nxt[0]
-    delay = coef[0, S_VALVE_DELAY]
-    while j < events.count and events.time_s[j] + delay < tk + dt:
-        extra[0, X_T_ACT] = events.time_s[j] + delay
-        for i in range(n):
-            lvl[i] = events.level[j]
-            lkind[i] = events.kind[j]
-        j += 1
-    for i in range(n):
-        nxt[i] = j
-    level = lvl[0]
-    if level > 0.0 and lkind[0] == EMERGENCY:
-        mode = _EMERGENCY
-    elif level > 0.0:
-        mode = _SERVICE
-    else:
-        mode = _RELEASE
-    # equalising reservoir of the driver's brake valve
     p_run = coef[0, S_P_RUN]
-    if mode == _EMERGENCY:
-        er_target = P_ATM
-    elif mode == _SERVICE:
-        red = max(coef[0, S_FIRST_STEP], level * coef[0, S_FULL_SERVICE])
-        er_target = p_run - min(red, coef[0, S_FULL_SERVICE])
-    else:
-        er_target = p_run
-    acting = _clip01((tk + dt - extra[0, X_T_ACT]) / dt)  # fraction of the step
-    er = extra[0, X_ER]
-    if er > er_target:
-        er = max(er_target, er - coef[0, S_ER_DOWN] * dt * acting)
-    else:
-        er = min(er_target, er + coef[0, S_ER_UP] * dt * acting)
-    # the emergency valve opens linearly over its opening time
-    em_open = _clip01((tk + dt - extra[0, X_T_ACT]) / coef[0, S_EM_OPEN])
-    extra[0, X_ER] = er
+    for v in range(n):
+        delay = coef[v, C_VALVE]
+        if delay < 0.0:
+            continue
+        # commands that act before the end of this step (issued a valve delay earlier) reach
+        # this driver's brake valve; within the step they act from their own time on
+        j = nxt[v]
+        while j < events.count and events.time_s[j] + delay < tk + dt:
+            extra[v, X_T_ACT] = events.time_s[j] + delay
+            lvl[v] = events.level[j]
+            lkind[v] = events.kind[j]
+            j += 1
+        nxt[v] = j
+        level = lvl[v]
+        if level > 0.0 and lkind[v] == EMERGENCY:
+            mode = _EMERGENCY
+            er_target = P_ATM
+        elif level > 0.0:
+            mode = _SERVICE
+            red = max(coef[0, S_FIRST_STEP], level * coef[0, S_FULL_SERVICE])
+            er_target = p_run - min(red, coef[0, S_FULL_SERVICE])
+        else:
+            mode = _RELEASE
+            er_target = p_run
+        # the equalising reservoir moves for the part of the step the command acts
+        acting = _clip01((tk + dt - extra[v, X_T_ACT]) / dt)
+        er = extra[v, X_ER]
+        if er > er_target:
+            er = max(er_target, er - coef[0, S_ER_DOWN] * dt * acting)
+        else:
+            er = min(er_target, er + coef[0, S_ER_UP] * dt * acting)
+        extra[v, X_ER] = er
+        extra[v, X_MODE] = float(mode)
+        # the emergency valve opens linearly over its opening time
+        extra[v, X_EM_OPEN] = _clip01((tk + dt - extra[v, X_T_ACT]) / coef[0, S_EM_OPEN])
+    # vehicles without a valve show the venting vehicle's command
+    lead = int(coef[0, S_VENT])
+    for i in range(n):
+        if coef[i, C_VALVE] < 0.0:
+            lvl[i] = lvl[lead]
+            lkind[i] = lkind[lead]
+            nxt[i] = nxt[lead]
     for i in range(n):
         pold[i] = extra[i, X_P]
-    _pipe_step(coef, extra, mode, em_open, dt, a, b, c, rhs, work)
+    _pipe_step(coef, extra, dt, a, b, c, rhs, work)
     rt = coef[0, S_RT]
     kflow = _C_CHOKED / math.sqrt(rt)
     for i in range(n):
