@@ -47,7 +47,9 @@ bit-identical results. A step uses the commands issued before its end, all known
 that computes it (commands are issued between advances, at their ends).
 
 ``delay_s`` is the earliest a command can reach each vehicle's distributor: over the driver's
-brake valves, the least valve delay plus distance over the isothermal sound speed.
+brake valves, the least valve delay plus distance over the isothermal sound speed. No
+distributor applies before it; a release acts later than it, once the pipe has risen back
+above the release characteristic (about 3.5 bar after a full application).
 """
 from __future__ import annotations
 
