@@ -22,12 +22,15 @@ def synthetic():
 
     Short and long trains (v_air) at 100 and 50 km/h (the dead time t_app + t_fill against
     the braking force k0); a coarse step keeps it cheap, and targets and fit use the same one.
+    The unscaled Fig. 4 coupler: with the fitted one the locomotive of run 6 comes to rest,
+    then rolls back a few centimetres, and the moment a stop is declared jumps with the
+    parameters, which makes the distance too rough for a 2 % recovery of all four.
     """
     catalogue = load_scenarios()
     numbers = [1, 6, 7, 12]
     step_s = 0.02
     truth = load_brake_params()
-    lut = load_coupler_lut()
+    lut = load_coupler_lut("couplers/buffer_hook_fig4.yaml")
     cases = [(catalogue[k].consist(), catalogue[k].speed_kmh) for k in numbers]
     with cal_mod.DistanceEvaluator(cases, lut, step_s=step_s, workers=2) as ev:
         distances = ev.distances([truth])[0]
@@ -58,6 +61,33 @@ def test_synthetic_fit_warns_that_application_delay_and_fill_time_go_together(sy
     assert any("t_app and t_fill are not separately identifiable" in w for w in result.warnings)
 
 
+def test_correlated_parameters_are_held_and_each_train_predicted():
+    # two trains at one speed: t_app and t_fill both read as dead time; asked to fit only what
+    # the targets determine, the later one (t_fill) is held at its start value, and each
+    # train is predicted by the t_app fitted to the other
+    catalogue = load_scenarios()
+    numbers, step_s = [1, 6], 0.05
+    truth = load_brake_params()
+    lut = load_coupler_lut()
+    cases = [(catalogue[k].consist(), catalogue[k].speed_kmh) for k in numbers]
+    with cal_mod.DistanceEvaluator(cases, lut, step_s=step_s, workers=2) as ev:
+        distances = ev.distances([truth])[0]
+        targets = [cal_mod.Target(str(k), c, v, float(d), "synthetic",
+                                  cal_mod.braked_weight_percent(c), k)
+                   for k, (c, v), d in zip(numbers, cases, distances)]
+        start = replace(truth, t_app_s=1.3 * truth.t_app_s)
+        result = cal_mod.calibrate(targets, ["t_app", "t_fill"], start, lut, step_s=step_s,
+                                   evaluator=ev, keep_correlated=False, cross_validate=True)
+    assert [p.name for p in result.fit] == ["t_app"]
+    assert [p.name for p, _ in result.held] == ["t_fill"]
+    assert result.params.t_fill_s == truth.t_fill_s
+    assert "t_fill held at its start value 5 s: not separately identifiable from t_app" in \
+        result.warnings[0]
+    assert result.params.t_app_s == pytest.approx(truth.t_app_s, rel=0.02)
+    assert np.all(np.isfinite(result.cv_error_percent))
+    assert np.abs(result.cv_error_percent).max() < 0.05
+
+
 # --------------------------------------------------------------------------- the uic preset
 
 
@@ -81,9 +111,27 @@ def test_uic_preset_says_how_it_was_made(uic_rows):
     text = open(params.source, encoding="utf-8").read()
     assert "ltd-brake calibrate --target uic --speed-kmh 100" in text
     assert "--out config/brake_params/uic.yaml" in text
-    # the length-dependent parameters took part, not just k0 and t_app
-    fitted = text.split("--fit ", 1)[1].split()[0].split(",")
-    assert {"v_air", "t_fill", "k0"} <= set(fitted)
+    # fitted to what the targets determine, nothing decided by a bound
+    assert "on its bound" not in text and "--allow-on-bound" not in text
+    assert "left out" in text  # leave-one-train-out errors beside the fit
+
+
+def test_uic_preset_is_physical():
+    # a real brake pipe propagates an emergency vent at 250-290 m/s (UIC 540); the cylinder
+    # pressure rises after the command, not at it; P filling times are 3-5 s (UIC 540)
+    params = load_brake_params("brake_params/uic.yaml")
+    assert 250.0 <= params.v_air_m_s <= 290.0
+    assert params.t_app_s > 0.0
+    assert 3.0 <= params.t_fill_s <= 5.0
+    fittable = cal_mod.fit_parameters(params.model)
+    for p in fittable.values():
+        assert p.lower < getattr(params, p.field) < p.upper, p.name
+
+
+def test_paper_preset_is_table_3():
+    params = load_brake_params("brake_params/paper.yaml")
+    assert (params.t_app_s, params.v_air_m_s, params.t_fill_s, params.k_loco,
+            params.mu_eff, params.k0) == (1.0, 200.0, 5.0, 3.54, 0.264, 2.72)
 
 
 def test_uic_curve_matches_table_1():
