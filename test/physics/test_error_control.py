@@ -119,3 +119,16 @@ def test_bad_tolerance_is_refused_in_one_line(bad):
                                          r"and 1 m/s") as err:
         Simulator(sc.consist(), sc.speed_kmh, tolerance_m_s=bad)
     assert "\n" not in str(err.value)
+
+
+def test_command_line_tolerance(capsys):
+    import json
+
+    from ltd_brake_ros.cli.main import main
+
+    assert main(["simulate", "--scenario", "6", "--tolerance-m-s", "0", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["rejected_steps"] == 0 and out["smallest_step_s"] == 0.01
+    assert main(["simulate", "--scenario", "6", "--tolerance-m-s", "-1"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "tolerance_m_s" in err and "must be between 0" in err
