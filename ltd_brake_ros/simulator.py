@@ -17,6 +17,9 @@ Contract
 4. Everything that changes lives in one :class:`SimulatorState`; :meth:`Simulator.reset`
    replaces it by a copy of the initial one. :attr:`Simulator.stats` reports what the
    integration cost.
+5. The train is judged against its strength and adhesion limits as it runs
+   (:mod:`~ltd_brake_ros.verdicts`): a ``limit_exceeded`` event when a coupler or vehicle
+   first goes beyond one, the whole table from :meth:`Simulator.verdicts`.
 
 Sign conventions: vehicle 0 is the head; speeds forward positive; coupler j (numbered from 1
 behind the head) carries force draft/tension positive, buff negative; brake forces are
