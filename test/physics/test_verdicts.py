@@ -169,3 +169,9 @@ def test_a_draft_above_the_default_strength_is_always_named(wagons, mass_t):
     named = {e.detail["coupler"] for e in events if e.detail["criterion"] == "draft_strength"}
     assert named == beyond
     assert (sim.verdicts()["draft_strength"].status == "FAIL") == bool(beyond)
+    # judged by a 500 kN draft limit (e.g. limits: {draft_strength_kN: 500} in the consist),
+    # every coupler above it is named, with its worst force
+    strict = dataclasses.replace(sim.limits, draft_strength_N=np.full(wagons, 500e3))
+    table = sim.verdicts(strict)["draft_strength"]
+    assert {e.number: e.value for e in table.exceedances} == {
+        int(j) + 1: sim.peak_draft_N[j] for j in np.flatnonzero(sim.peak_draft_N > 500e3)}
