@@ -159,8 +159,8 @@ def _expand(path: Path, configurations: dict, declared: set) -> list:
             configurations.setdefault(name, entity.kwargs["default_value"])
             choices = entity.kwargs.get("choices")
             if choices is not None and configurations[name] not in choices:
-                raise ValueError(f"Argument '{name}' provided value '{configurations[name]}' "
-                                 f"is not valid. Valid options are: {choices}")
+                raise ValueError(f'Argument "{name}" provided value "{configurations[name]}" '
+                                 f'is not valid. Valid options are: {choices}')
         elif kind == "OpaqueFunction":
             for action in entity.kwargs["function"](context):
                 process(action)
@@ -245,7 +245,7 @@ def test_sim_launch_starts_the_plant_with_the_installed_file_and_typed_overrides
     with pytest.raises(ValueError, match="launch argument real_time_factor: 'fast' is not a "
                                          "number"):
         launch("sim.launch.py", real_time_factor="fast")
-    with pytest.raises(ValueError, match="Argument 'lock_step' provided value 'yes'"):
+    with pytest.raises(ValueError, match='Argument "lock_step" provided value "yes"'):
         launch("sim.launch.py", lock_step="yes")
     with pytest.raises(ValueError, match="launch argument params_file: /nonexistent.yaml is "
                                          "not a file"):
