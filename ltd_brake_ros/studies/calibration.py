@@ -1665,9 +1665,9 @@ def validation_targets(rows) -> list[tuple[str, bool, str]]:
     """
     out = []
 
-    def worst(values, label):
+    def worst(values, label, digits=1):
         k = int(np.argmax([abs(v) for v, _ in values]))
-        return f"worst {values[k][0]:+.1f}{label} (run {values[k][1]})"
+        return f"worst {values[k][0]:+.{digits}f}{label} (run {values[k][1]})"
 
     draft = [(100 * (r.result.peak_draft_kN - r.scenario.paper["draft_kN"])
               / r.scenario.paper["draft_kN"], r.scenario.number) for r in rows]
@@ -1689,5 +1689,5 @@ def validation_targets(rows) -> list[tuple[str, bool, str]]:
         if dist:
             out.append((f"stopping distance within +/-{100 * tol:g} % of LTDPoliTo at "
                         f"{speed:g} km/h", all(abs(v) <= 100 * tol for v, _ in dist),
-                        worst(dist, " %")))
+                        worst(dist, " %", 2)))
     return out
