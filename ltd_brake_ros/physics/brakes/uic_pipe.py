@@ -80,8 +80,6 @@ C_DISTRIBUTOR = 2  # 1: the vehicle has a distributor
 C_FILL_RATE = 3  # filling rate of the cylinder after inshot (P or G) [Pa/s]
 C_LAP_TAU = 4  # time constant of the approach to the target pressure [s]
 C_RELEASE_TAU = 5  # time constant of the release [s]
-C_LAP_DECAY = 43  # exp(-pipe step / C_LAP_TAU)
-C_RELEASE_DECAY = 44  # exp(-pipe step / C_RELEASE_TAU)
 # ---- scalars (the same in every row)
 S_DT, S_AREA, S_DIAM, S_HOSE_K, S_MU, S_RT = 6, 7, 8, 9, 10, 11
 S_P_RUN, S_P_MR, S_A_FEED, S_A_VENT, S_A_EMERG, S_BAND = 12, 13, 14, 15, 16, 17
@@ -91,8 +89,13 @@ S_P_INSHOT, S_INSHOT_RATE, S_A_AUX, S_V_AUX, S_V_CYL, S_N_POLY = 29, 30, 31, 32,
 S_A_QS, S_V_QS, S_ACC_ON, S_ACC_THETA, S_ACC_TAU, S_A_ACC, S_ACC_CLOSE = (35, 36, 37, 38, 39,
                                                                            40, 41)
 S_SUPPLY_BAND = 42
+# ---- per vehicle (continued)
+C_LAP_DECAY = 43  # exp(-pipe step / C_LAP_TAU)
+C_RELEASE_DECAY = 44  # exp(-pipe step / C_RELEASE_TAU)
+# ---- scalars (continued)
 S_VALVE_DELAY = 45
 S_EM_OPEN = 46
+# ---- per vehicle (continued)
 C_VALVE = 47  # delay from a command to this vehicle's driver's brake valve acting [s]; -1: none
 N_COEF = 48
 
@@ -367,7 +370,7 @@ def initial_state(arrays: BrakeArrays) -> BrakeState:
         extra[:, col] = p_run
     extra[:, X_QS] = P_ATM
     extra[:, X_GRID] = -1.0
-    extra[:, X_T_ACT] = -np.inf
+    extra[:, X_T_ACT] = -1e9  # long before any command
     return BrakeState(np.zeros(n), np.zeros(n), np.zeros(n, np.int64), np.zeros(n, np.int64),
                       extra)
 
