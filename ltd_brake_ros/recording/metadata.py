@@ -1,6 +1,8 @@
 """Run information stored in a recording: what train, at what speed, with which settings."""
 from __future__ import annotations
 
+from ..verdicts import limits_metadata
+
 
 def run_metadata(sim, *, scenario=None, parameters: dict | None = None, **extra) -> dict:
     """Run information to store in a recording (``BagWriter(metadata=...)``).
@@ -34,6 +36,8 @@ def run_metadata(sim, *, scenario=None, parameters: dict | None = None, **extra)
                     "composition": groups},
         "initial_speed_kmh": float(sim.speed_kmh),
         "step_s": float(sim.step_s),
+        # strength and adhesion limits the run was judged by (kN, t): the report reads them back
+        "limits": limits_metadata(sim.limits),
     }
     if scenario is not None:
         meta["scenario"] = scenario

@@ -24,7 +24,10 @@ AFTER_STOP_S = 1.0  # recorded on after the stop, as the node does, until all st
 
 def record(folder, sim, *, limits: bool):
     """Coast, apply the emergency brake, record every chunk until the stop (as the node)."""
-    meta = run_metadata(sim, **({"limits": limits_metadata(sim.limits)} if limits else {}))
+    meta = run_metadata(sim)
+    assert meta["limits"] == limits_metadata(sim.limits)  # every recording carries its limits
+    if not limits:
+        del meta["limits"]  # as a recording made before limits were stored
     with BagWriter(folder, metadata=meta) as w:
         declare_topics(w, "/t")
 
