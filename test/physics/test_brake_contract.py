@@ -109,11 +109,14 @@ def test_release_decays_the_force(name):
     events = emergency_at(0.0).appended(t_release, 0.0, SERVICE, 0)
     times, force = history(model, arrays, events, 160.0)
     for i, delay in enumerate(arrays.delay_s):
-        # after the step in which the release reaches the vehicle, the force only falls
+        # fully applied when the release reaches the vehicle; from the step where the force
+        # first falls, it only falls (an empirical law falls at once, a brake pipe only once it
+        # has been recharged above the distributor's release threshold)
         k = np.searchsorted(times, t_release + delay)
         assert force[k - 1, i] > 0.9 * arrays.force_max_N[i]
-        assert np.all(np.diff(force[k:, i]) <= 0.0), f"vehicle {i}"
-        assert force[k + 1, i] < force[k - 1, i]
+        falls = np.flatnonzero(np.diff(force[k - 1:, i]) < 0.0)
+        assert falls.size, f"vehicle {i} never releases"
+        assert np.all(np.diff(force[k - 1 + falls[0]:, i]) <= 0.0), f"vehicle {i}"
     # the release times of the shipped models are at most 60 s: two minutes leave < 5 %
     assert np.all(force[-1] <= 0.05 * arrays.force_max_N)
 

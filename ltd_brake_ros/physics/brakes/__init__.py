@@ -29,8 +29,8 @@ A brake model is one module of this package that defines:
    block forces.
 6. Register: one line in :data:`MODELS` and one branch in :func:`advance`.
 7. The contract tests (``test/physics/test_brake_contract.py``) run over every registered
-   model: no force before the command reaches a vehicle, a monotone rise under emergency, decay
-   on release, advancing in two pieces equals one piece, and a whole stop.
+   model: no force before the command reaches a vehicle, a monotone rise under emergency, a
+   monotone decay once a release takes effect, two pieces equal one piece, and a whole stop.
 """
 from __future__ import annotations
 
