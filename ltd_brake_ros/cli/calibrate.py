@@ -109,6 +109,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="skip the leave-one-train-out refits")
     p.add_argument("--allow-on-bound", action="store_true",
                    help="write --out even when a fitted value sits on a bound")
+    p.add_argument("--draft-limit-kn", type=float, metavar="KN",
+                   help="--target forces: also keep the peak draft of the light long trains "
+                        "that snatch as they stop (E402B + 34-40 Shimmns from 40-50 km/h) "
+                        "below this force [kN], e.g. 500")
     p.add_argument("--scenarios", metavar="LIST",
                    help="rows of Tables 1-2, e.g. 1-6 or 1,3,5 (default: all at --speed-kmh)")
     p.add_argument("--consist", action="append", metavar="FILE",
@@ -165,6 +169,8 @@ def command_line(args: argparse.Namespace, fit) -> str:
         parts.append(f"--max-nfev {args.max_nfev}")
     if args.allow_on_bound:
         parts.append("--allow-on-bound")
+    if getattr(args, "draft_limit_kn", None) is not None:
+        parts.append(f"--draft-limit-kn {args.draft_limit_kn:g}")
     if args.out:
         parts.append(f"--out {args.out}")
     return " ".join(parts)
@@ -223,7 +229,8 @@ def run_forces(args: argparse.Namespace) -> int:
     from ..inputs import load_scenarios
     from ..physics import couplers
     from ..studies.calibration import (DistanceEvaluator, calibrate_couplers, coupler_file_text,
-                                       display_path, force_summary_lines, force_table)
+                                       display_path, force_summary_lines, force_table,
+                                       limit_lines, snatch_trains)
 
     brake, lut = load_model(args)
     model = couplers.model_of(lut).NAME
@@ -250,15 +257,23 @@ def run_forces(args: argparse.Namespace) -> int:
             raise InputError("command line", "--speed-kmh", f"no run of Tables 1-2 at "
                              f"{args.speed_kmh:g} km/h")
     scenarios = [catalogue[k] for k in numbers]
-    budget = (args.max_nfev * (len(fit) + 1) + 2 * len(fit) + 2) * len(scenarios)
+    limits = []
+    if args.draft_limit_kn is not None:
+        if not args.draft_limit_kn > 0:
+            raise InputError("command line", "--draft-limit-kn",
+                             f"must be a positive force, got {args.draft_limit_kn:g}")
+        limits = snatch_trains()
+    budget = (args.max_nfev * (len(fit) + 1) + 2 * len(fit) + 2) * (len(scenarios) + len(limits))
     bar = _progress(args, budget)
     try:
-        with DistanceEvaluator([(s.consist(), s.speed_kmh) for s in scenarios], lut,
+        with DistanceEvaluator([(s.consist(), s.speed_kmh) for s in scenarios] + limits, lut,
                                step_s=args.step_s, workers=args.jobs, progress=bar) as ev:
             cal = calibrate_couplers(scenarios, fit, lut, brake, step_s=args.step_s,
                                      progress=bar, max_nfev=args.max_nfev, evaluator=ev,
                                      keep_correlated=args.keep_correlated,
-                                     cross_validate=not args.no_cross_validation)
+                                     cross_validate=not args.no_cross_validation,
+                                     limits=limits,
+                                     draft_limit_N=1e3 * (args.draft_limit_kn or 500.0))
     finally:
         bar.close()
     print(f"calibration of the {model} coupler against the peak forces of Tables 1-2: "
@@ -269,6 +284,9 @@ def run_forces(args: argparse.Namespace) -> int:
     print(force_table(cal))
     print()
     print("\n".join(force_summary_lines(cal)))
+    if cal.limits:
+        print()
+        print("\n".join(limit_lines(cal)))
     _print_common(cal)
     return _finish(args, cal, coupler_file_text)
 

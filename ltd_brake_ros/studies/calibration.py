@@ -1154,6 +1154,51 @@ TARGET_MARGIN = 0.9
 MARGIN_WEIGHT = 10.0
 #: Residuals per run of :func:`force_residuals`.
 FORCE_RESIDUALS = 7
+#: Largest draft the trains of :func:`snatch_trains` may reach with the fitted coupler [N]:
+#: 500 kN, well below the 850 kN breaking load of a screw coupling (EN 15566, UIC 520).
+DRAFT_LIMIT_N = 500e3
+#: Weight of a draft above the limit, per fraction of the limit, in the units of the force
+#: residuals.
+LIMIT_WEIGHT = 10.0
+
+
+def snatch_trains() -> list[tuple[Consist, float]]:
+    """The trains whose draft snatches a coupler fit must keep below a limit.
+
+    E402B + 34 to 40 Shimmns (50 t and 80 t) from 40 km/h and 38 and 40 light wagons from
+    50 km/h: among E402B + 10-40 Shimmns braked from 40-120 km/h, the runs whose draft peaks
+    near the tail as the train stops (up to 1.9 MN with the Fig. 4 reconstruction).
+
+    Returns
+    -------
+    list of (Consist, float)
+        Trains and initial speeds [km/h].
+    """
+    from ..inputs import consist_from_mapping
+
+    def train(n: int, mass_t: float) -> Consist:
+        return consist_from_mapping({"name": f"E402B + {n} Shimmns ({mass_t:g} t)", "vehicles": [
+            {"type": "E402B"}, {"type": "Shimmns", "count": n, "mass_t": mass_t}]},
+            f"<snatch {n} x {mass_t:g} t>")
+
+    return ([(train(n, m), 40.0) for m in (50.0, 80.0) for n in (34, 36, 38, 40)]
+            + [(train(n, 50.0), 50.0) for n in (38, 40)])
+
+
+def limit_residuals(metrics: np.ndarray, limit_N: float = DRAFT_LIMIT_N) -> np.ndarray:
+    """Penalty of peak drafts above a limit: :data:`LIMIT_WEIGHT` times the excess fraction.
+
+    Parameters
+    ----------
+    metrics : ndarray, shape (k, runs, len(METRICS))
+    limit_N : float, optional
+
+    Returns
+    -------
+    ndarray, shape (k, runs)
+    """
+    excess = metrics[..., DRAFT] * 1e3 / limit_N - 1.0
+    return LIMIT_WEIGHT * np.where(np.isfinite(excess), np.maximum(excess, 0.0), np.nan)
 
 
 def force_residuals(metrics: np.ndarray, scenarios: Sequence) -> np.ndarray:
@@ -1217,6 +1262,11 @@ class CouplerCalibration:
     ci95, correlation, at_bound, warnings, nfev, runs, dof, converged, message, held
         As :class:`Calibration`; the residuals are in fractions of the targets (see
         :func:`force_residuals`).
+    limits : list of (Consist, float)
+        Trains whose peak draft was held below ``draft_limit_N``.
+    limit_before, limit_after : ndarray, shape (len(limits), len(METRICS))
+        Their :data:`METRICS` at the start and fitted values.
+    draft_limit_N : float
     """
 
     scenarios: list
@@ -1237,6 +1287,10 @@ class CouplerCalibration:
     converged: bool = True
     message: str = ""
     held: list = field(default_factory=list)
+    limits: list = field(default_factory=list)
+    limit_before: np.ndarray | None = None
+    limit_after: np.ndarray | None = None
+    draft_limit_N: float = DRAFT_LIMIT_N
 
     def value(self, p: FitParameter, which: str = "params") -> float:
         """Value of a fitted parameter in ``params`` or ``start``."""
@@ -1255,7 +1309,9 @@ def calibrate_couplers(scenarios: Sequence, fit: Sequence[FitParameter | str],
                        diff_step: float = 2e-2, stats_step: float = 5e-2,
                        evaluator: DistanceEvaluator | None = None,
                        keep_correlated: bool = True,
-                       cross_validate: bool = False) -> CouplerCalibration:
+                       cross_validate: bool = False,
+                       limits: Sequence[tuple[Consist, float]] = (),
+                       draft_limit_N: float = DRAFT_LIMIT_N) -> CouplerCalibration:
     """Fit coupler parameters to the paper's peak in-train forces of Tables 1-2.
 
     Minimises the squares of :func:`force_residuals`: the relative peak draft and buff errors
@@ -1278,6 +1334,11 @@ def calibrate_couplers(scenarios: Sequence, fit: Sequence[FitParameter | str],
         Forward-difference step, relative to each parameter's typical magnitude [-]: a peak
         force moves with the scales smoothly only over steps that outgrow the integration
         step's jitter.
+    limits : sequence of (Consist, float), optional
+        Further trains and initial speeds [km/h] whose peak draft must stay below
+        ``draft_limit_N`` (see :func:`snatch_trains`): a penalty (:func:`limit_residuals`)
+        in every fit, refits included; an evaluator's cases hold them after the scenarios.
+    draft_limit_N : float, optional
 
     Returns
     -------
@@ -1291,10 +1352,12 @@ def calibrate_couplers(scenarios: Sequence, fit: Sequence[FitParameter | str],
     start = replace(start, **{p.field: float(np.clip(given[p.name], p.lower, p.upper))
                               for p in fit})
     m = len(scenarios)
+    extra = list(range(m, m + len(limits)))
     own = evaluator is None
     if own:
-        evaluator = DistanceEvaluator([(s.consist(), s.speed_kmh) for s in scenarios], start,
-                                      step_s=step_s, workers=workers, progress=progress)
+        evaluator = DistanceEvaluator([(s.consist(), s.speed_kmh) for s in scenarios]
+                                      + list(limits), start, step_s=step_s, workers=workers,
+                                      progress=progress)
     failed_before = len(evaluator.failures)
 
     def last_failure() -> str:
@@ -1308,7 +1371,12 @@ def calibrate_couplers(scenarios: Sequence, fit: Sequence[FitParameter | str],
 
     def batch_of(rows: Sequence[int], chosen: list):
         sel = [scenarios[i] for i in rows]
-        return lambda xs: force_residuals(metrics_of(rows, chosen, xs), sel)
+
+        def batch(xs) -> np.ndarray:
+            r = metrics_of(list(rows) + extra, chosen, xs)
+            return np.hstack([force_residuals(r[:, :len(rows)], sel),
+                              limit_residuals(r[:, len(rows):], draft_limit_N)])
+        return batch
 
     def run(chosen: list):
         x0 = np.array([given[p.name] for p in chosen])
@@ -1322,9 +1390,11 @@ def calibrate_couplers(scenarios: Sequence, fit: Sequence[FitParameter | str],
 
     every = list(range(m))
     try:
-        before = evaluator.metrics([(brake, original)], every)[0]
+        before = evaluator.metrics([(brake, original)], every + extra)[0]
         fit, out, stats, held = _identifiable_fit(list(fit), run, keep_correlated)
-        after = metrics_of(every, fit, [out.x])[0]
+        after = metrics_of(every + extra, fit, [out.x])[0]
+        limit_before, limit_after = before[m:], after[m:]
+        before, after = before[:m], after[:m]
         cv = np.full_like(after, np.nan)
         if cross_validate:
             groups = _train_groups([evaluator.cases[i][0] for i in every])
@@ -1343,7 +1413,8 @@ def calibrate_couplers(scenarios: Sequence, fit: Sequence[FitParameter | str],
     return CouplerCalibration(scenarios, list(fit), original, coupler_at(fit, out.x), brake, before,
                               after, cv, stats.ci95, stats.correlation, stats.at_bound,
                               stats.warnings, out.nfev, runs, stats.dof, out.status > 0,
-                              out.message, held)
+                              out.message, held, list(limits), limit_before, limit_after,
+                              draft_limit_N)
 
 
 # --------------------------------------------------------------------------- report
@@ -1483,6 +1554,15 @@ def force_table(cal: "CouplerCalibration") -> str:
     return "\n".join(lines)
 
 
+def limit_lines(cal: "CouplerCalibration") -> list[str]:
+    """One line per train held below the draft limit: its peak draft before and after."""
+    out = []
+    for (c, v), b, a in zip(cal.limits, cal.limit_before, cal.limit_after):
+        out.append(f"{c.name} from {v:g} km/h: peak draft {b[DRAFT]:.0f}@{b[DRAFT_AT]:.0f} -> "
+                   f"{a[DRAFT]:.0f}@{a[DRAFT_AT]:.0f} kN (limit {cal.draft_limit_N / 1e3:g} kN)")
+    return out
+
+
 def force_summary_lines(cal: "CouplerCalibration") -> list[str]:
     """Largest draft and buff errors before, after and left out, one line each."""
     out = []
@@ -1581,6 +1661,9 @@ def coupler_file_text(cal: "CouplerCalibration", command: str) -> str:
                     f"{a[DRAFT]:4.0f}@{a[DRAFT_AT]:<2.0f} {_pct(ea[i, 0]):>9} "
                     f"({_pct(ec[i, 0])})  buff {p['buff_kN']:>3}@{p['buff_coupler']:<2} "
                     f"{a[BUFF]:4.0f}@{a[BUFF_AT]:<2.0f} {_pct(ea[i, 1]):>9} ({_pct(ec[i, 1])})")
+    if cal.limits:
+        head.append("# Held below the draft limit (start -> fitted):")
+        head += [f"#   {line}" for line in limit_lines(cal)]
     head += _fitted_lines(cal)
     model = couplers.model_of(cal.params)
     if model is lut_hysteresis:

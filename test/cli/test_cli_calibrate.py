@@ -137,3 +137,8 @@ def test_bad_fit_options_exit_2_with_clear_message(argv, words, one_line_error):
     err = one_line_error("calibrate")
     for w in words:
         assert w in err
+
+
+def test_draft_limit_must_be_positive(one_line_error):
+    assert main(["calibrate", "--target", "forces", "--draft-limit-kn", "0", "--quiet"]) == 2
+    assert "--draft-limit-kn" in one_line_error("calibrate")

@@ -92,3 +92,10 @@ def test_coupler_names_resolve_against_the_coupler_model():
     assert cal_mod.parse_fit("stiffness", "linear", part="coupler")[0].part == "coupler"
     with pytest.raises(cal_mod.InputError, match="unknown parameter 'k0'"):
         cal_mod.parse_fit("k0", "lut_hysteresis", part="coupler")
+
+
+def test_limit_residuals_cost_only_above_the_limit():
+    m = np.zeros((1, 3, len(cal_mod.METRICS)))
+    m[0, :, cal_mod.DRAFT] = [400.0, 500.0, 750.0]  # kN
+    np.testing.assert_allclose(cal_mod.limit_residuals(m, 500e3)[0],
+                               [0.0, 0.0, 0.5 * cal_mod.LIMIT_WEIGHT])
