@@ -631,21 +631,14 @@ class DistanceEvaluator:
 # --------------------------------------------------------------------------- fit
 
 
-@dataclass
-class Calibration:
-    """Outcome of :func:`calibrate` (units: fitted values in each parameter's unit).
+@dataclass(kw_only=True)
+class FitOutcome:
+    """What every fit reports about its parameters (values in each parameter's unit).
 
     Attributes
     ----------
-    targets : list of Target
     fit : list of FitParameter
         The parameters fitted in the end (without those held for identifiability).
-    start : BrakeParams
-        Start values (clipped into the bounds); the parameters not fitted keep them.
-    params : BrakeParams
-        Fitted values, rounded to :data:`WRITE_DIGITS` significant digits.
-    before_m, after_m : ndarray
-        Simulated stopping distances at the start and fitted values [m].
     ci95 : ndarray
         Half-widths of the 95 % confidence intervals, NaN when not estimable.
     correlation : ndarray
@@ -659,24 +652,17 @@ class Calibration:
     runs : int
         Emergency stops simulated in total.
     dof : int
-        Degrees of freedom of the residual: targets minus parameters not held by a bound.
+        Degrees of freedom of the residual: observations minus parameters not held by a
+        bound.
     converged : bool
         The optimiser met a tolerance (not the evaluation budget).
     message : str
         The optimiser's termination message.
     held : list of (FitParameter, str)
         Parameters asked for but held at their start values, and why.
-    cv_m : ndarray
-        Leave-one-train-out distances: each target's train left out of the fit, the others
-        refitted, the left-out stop simulated with those values [m] (NaN: not done).
     """
 
-    targets: list
     fit: list
-    start: BrakeParams
-    params: BrakeParams
-    before_m: np.ndarray
-    after_m: np.ndarray
     ci95: np.ndarray
     correlation: np.ndarray
     at_bound: list = field(default_factory=list)
@@ -687,6 +673,42 @@ class Calibration:
     converged: bool = True
     message: str = ""
     held: list = field(default_factory=list)
+
+    def value(self, p: FitParameter, which: str = "params") -> float:
+        """Value of a fitted parameter in ``params`` or ``start``."""
+        return float(getattr(getattr(self, which), p.field))
+
+
+def _outcome(fit, out: "_Fit", stats: "_Stats", runs: int, held: list) -> dict:
+    """The :class:`FitOutcome` fields of a fit, as keywords."""
+    return dict(fit=list(fit), ci95=stats.ci95, correlation=stats.correlation,
+                at_bound=stats.at_bound, warnings=stats.warnings, nfev=out.nfev, runs=runs,
+                dof=stats.dof, converged=out.status > 0, message=out.message, held=held)
+
+
+@dataclass(kw_only=True)
+class Calibration(FitOutcome):
+    """Outcome of :func:`calibrate`: a :class:`FitOutcome` and the distances.
+
+    Attributes
+    ----------
+    targets : list of Target
+    start : BrakeParams
+        Start values (clipped into the bounds); the parameters not fitted keep them.
+    params : BrakeParams
+        Fitted values, rounded to :data:`WRITE_DIGITS` significant digits.
+    before_m, after_m : ndarray
+        Simulated stopping distances at the start and fitted values [m].
+    cv_m : ndarray
+        Leave-one-train-out distances: each target's train left out of the fit, the others
+        refitted, the left-out stop simulated with those values [m] (NaN: not done).
+    """
+
+    targets: list
+    start: BrakeParams
+    params: BrakeParams
+    before_m: np.ndarray
+    after_m: np.ndarray
     cv_m: np.ndarray | None = None
 
     @property
@@ -710,11 +732,6 @@ class Calibration:
         if self.cv_m is None:
             return np.full(len(self.targets), np.nan)
         return 100.0 * (self.cv_m - self.reference_m) / self.reference_m
-
-    def value(self, p: FitParameter, which: str = "params") -> float:
-        """Value of a fitted parameter in ``params`` or ``start``."""
-        return float(getattr(getattr(self, which), p.field))
-
 
 def _round(x: float, digits: int = WRITE_DIGITS) -> float:
     return float(f"{x:.{digits}g}")
@@ -1020,6 +1037,70 @@ def _cross_validate(fit, x, groups, batch_of, *, max_nfev, diff_step, last_failu
     return out
 
 
+def _fit_targets(fit: list, given: dict, batch_of, m: int, consists: Sequence[Consist],
+                 evaluator: DistanceEvaluator, *, max_nfev: int, diff_step: float,
+                 stats_step: float, progress, keep_correlated: bool, cross_validate: bool,
+                 label: str, observations: int | None = None):
+    """The fit :func:`calibrate` and :func:`calibrate_couplers` share.
+
+    Fits the targets' residuals (holding unidentifiable parameters unless
+    ``keep_correlated``), computes the statistics, and with ``cross_validate`` refits with
+    each train left out.
+
+    Parameters
+    ----------
+    fit : list of FitParameter
+    given : dict
+        Start value of each parameter by short name (clipped into its bounds by the fit).
+    batch_of : callable
+        (target indices, fitted parameters) -> batch function (see :func:`_least_squares`).
+    m : int
+        Number of targets.
+    consists : sequence of Consist
+        The train of each target (left out together).
+    evaluator : DistanceEvaluator
+    max_nfev, diff_step, stats_step, progress, keep_correlated, cross_validate
+        As :func:`calibrate`.
+    label : str
+        Progress-bar postfix.
+    observations : int, optional
+        As :func:`_statistics`.
+
+    Returns
+    -------
+    fit : list of FitParameter
+    out : _Fit
+    stats : _Stats
+    held : list of (FitParameter, str)
+    refits : list of (list of int, ndarray or None)
+        Each train's target indices and the values fitted without it.
+    """
+    failed_before = len(evaluator.failures)
+
+    def last_failure() -> str:
+        return evaluator.failures[-1] if evaluator.failures else ""
+
+    def run(chosen: list):
+        x0 = np.array([given[p.name] for p in chosen])
+        out = _least_squares(chosen, x0, batch_of(list(range(m)), chosen), max_nfev=max_nfev,
+                             diff_step=diff_step, stats_step=stats_step,
+                             last_failure=last_failure, progress=progress, label=label)
+        stats = _statistics(chosen, out, len(evaluator.failures) - failed_before,
+                            last_failure(), not out.status > 0, observations=observations)
+        return out, stats
+
+    fit, out, stats, held = _identifiable_fit(list(fit), run, keep_correlated)
+    refits = []
+    if cross_validate:
+        refits = _cross_validate(fit, out.x, _train_groups(consists),
+                                 lambda rows: batch_of(rows, fit), max_nfev=max_nfev,
+                                 diff_step=diff_step, last_failure=last_failure)
+    for p, why in held:
+        value = float(np.clip(given[p.name], p.lower, p.upper))
+        stats.warnings.insert(0, f"{p.name} held at its start value {value:g} {p.unit}: {why}")
+    return fit, out, stats, held, refits
+
+
 def calibrate(targets: Sequence[Target], fit: Sequence[FitParameter | str],
               start: BrakeParams | None = None, lut: CouplerLUT | None = None, *,
               step_s: float = 0.01, workers: int | None = None, progress=None,
@@ -1087,10 +1168,6 @@ def calibrate(targets: Sequence[Target], fit: Sequence[FitParameter | str],
     if own:
         evaluator = DistanceEvaluator([(t.consist, t.speed_kmh) for t in targets], lut,
                                       step_s=step_s, workers=workers, progress=progress)
-    failed_before = len(evaluator.failures)
-
-    def last_failure() -> str:
-        return evaluator.failures[-1] if evaluator.failures else ""
 
     def batch_of(rows: Sequence[int], chosen: list):
         def batch(xs) -> np.ndarray:
@@ -1100,39 +1177,24 @@ def calibrate(targets: Sequence[Target], fit: Sequence[FitParameter | str],
             return (d - ref[rows]) / ref[rows]
         return batch
 
-    def run(chosen: list):
-        x0 = np.array([given[p.name] for p in chosen])
-        out = _least_squares(chosen, x0, batch_of(list(range(m)), chosen), max_nfev=max_nfev,
-                             diff_step=diff_step, stats_step=stats_step,
-                             last_failure=last_failure, progress=progress,
-                             label="max |error| [-]")
-        stats = _statistics(chosen, out, len(evaluator.failures) - failed_before,
-                            last_failure(), not out.status > 0)
-        return out, stats
-
     try:
-        fit, out, stats, held = _identifiable_fit(list(fit), run, keep_correlated)
+        fit, out, stats, held, refits = _fit_targets(
+            fit, given, batch_of, m, [t.consist for t in targets], evaluator,
+            max_nfev=max_nfev, diff_step=diff_step, stats_step=stats_step, progress=progress,
+            keep_correlated=keep_correlated, cross_validate=cross_validate,
+            label="max |error| [-]")
         params = replace(start, **{p.field: float(v) for p, v in zip(fit, out.x)})
-        cv = None
-        if cross_validate:
-            cv = np.full(m, np.nan)
-            groups = _train_groups([t.consist for t in targets])
-            for g, x in _cross_validate(fit, out.x, groups, lambda rows: batch_of(rows, fit),
-                                        max_nfev=max_nfev, diff_step=diff_step,
-                                        last_failure=last_failure):
-                if x is not None:
-                    cv[g] = batch_of(g, fit)([x])[0] * ref[g] + ref[g]
+        cv = np.full(m, np.nan) if cross_validate else None
+        for g, x in refits:
+            if x is not None:
+                cv[g] = batch_of(g, fit)([x])[0] * ref[g] + ref[g]
         runs = evaluator.runs
     finally:
         if own:
             evaluator.close()
-    for p, why in held:
-        stats.warnings.insert(0, f"{p.name} held at its start value "
-                                 f"{getattr(start, p.field):g} {p.unit}: {why}")
-    return Calibration(targets, list(fit), start, params, out.r_before * ref + ref,
-                       out.r_after * ref + ref, stats.ci95, stats.correlation, stats.at_bound,
-                       stats.warnings, out.nfev, runs, stats.dof, out.status > 0, out.message,
-                       held, cv)
+    return Calibration(targets=targets, start=start, params=params,
+                       before_m=out.r_before * ref + ref, after_m=out.r_after * ref + ref,
+                       cv_m=cv, **_outcome(fit, out, stats, runs, held))
 
 
 # --------------------------------------------------------------------------- coupler forces
@@ -1239,16 +1301,15 @@ def force_residuals(metrics: np.ndarray, scenarios: Sequence) -> np.ndarray:
     return r.reshape(metrics.shape[0], -1)
 
 
-@dataclass
-class CouplerCalibration:
-    """Outcome of :func:`calibrate_couplers` (fitted values in each parameter's unit).
+@dataclass(kw_only=True)
+class CouplerCalibration(FitOutcome):
+    """Outcome of :func:`calibrate_couplers`: a :class:`FitOutcome` (its residuals in fractions
+    of the targets, see :func:`force_residuals`) and the forces.
 
     Attributes
     ----------
     scenarios : list of Scenario
         The runs of Tables 1-2 fitted.
-    fit : list of FitParameter
-        The parameters fitted in the end.
     start, params : coupler Params
         Start values as given (the fit starts from them clipped into the bounds) and fitted
         values (rounded to :data:`WRITE_DIGITS` digits).
@@ -1259,9 +1320,6 @@ class CouplerCalibration:
     cv : ndarray, shape (runs, len(METRICS))
         Leave-one-train-out: each run simulated with the values fitted without its train
         (NaN: not done).
-    ci95, correlation, at_bound, warnings, nfev, runs, dof, converged, message, held
-        As :class:`Calibration`; the residuals are in fractions of the targets (see
-        :func:`force_residuals`).
     limits : list of (Consist, float)
         Trains whose peak draft was held below ``draft_limit_N``.
     limit_before, limit_after : ndarray, shape (len(limits), len(METRICS))
@@ -1270,31 +1328,16 @@ class CouplerCalibration:
     """
 
     scenarios: list
-    fit: list
     start: object
     params: object
     brake: BrakeParams
     before: np.ndarray
     after: np.ndarray
     cv: np.ndarray
-    ci95: np.ndarray
-    correlation: np.ndarray
-    at_bound: list = field(default_factory=list)
-    warnings: list = field(default_factory=list)
-    nfev: int = 0
-    runs: int = 0
-    dof: int = 0
-    converged: bool = True
-    message: str = ""
-    held: list = field(default_factory=list)
     limits: list = field(default_factory=list)
     limit_before: np.ndarray | None = None
     limit_after: np.ndarray | None = None
     draft_limit_N: float = DRAFT_LIMIT_N
-
-    def value(self, p: FitParameter, which: str = "params") -> float:
-        """Value of a fitted parameter in ``params`` or ``start``."""
-        return float(getattr(getattr(self, which), p.field))
 
     def error_percent(self, which: str = "after") -> np.ndarray:
         """Peak draft and buff errors against the paper, shape (runs, 2) [%]."""
@@ -1358,10 +1401,6 @@ def calibrate_couplers(scenarios: Sequence, fit: Sequence[FitParameter | str],
         evaluator = DistanceEvaluator([(s.consist(), s.speed_kmh) for s in scenarios]
                                       + list(limits), start, step_s=step_s, workers=workers,
                                       progress=progress)
-    failed_before = len(evaluator.failures)
-
-    def last_failure() -> str:
-        return evaluator.failures[-1] if evaluator.failures else ""
 
     def coupler_at(chosen, x):
         return replace(start, **{p.field: float(v) for p, v in zip(chosen, x)})
@@ -1378,43 +1417,30 @@ def calibrate_couplers(scenarios: Sequence, fit: Sequence[FitParameter | str],
                               limit_residuals(r[:, len(rows):], draft_limit_N)])
         return batch
 
-    def run(chosen: list):
-        x0 = np.array([given[p.name] for p in chosen])
-        out = _least_squares(chosen, x0, batch_of(list(range(m)), chosen), max_nfev=max_nfev,
-                             diff_step=diff_step, stats_step=stats_step,
-                             last_failure=last_failure, progress=progress,
-                             label="max |residual| / target")
-        stats = _statistics(chosen, out, len(evaluator.failures) - failed_before,
-                            last_failure(), not out.status > 0, observations=2 * m)
-        return out, stats
-
     every = list(range(m))
     try:
         before = evaluator.metrics([(brake, original)], every + extra)[0]
-        fit, out, stats, held = _identifiable_fit(list(fit), run, keep_correlated)
+        fit, out, stats, held, refits = _fit_targets(
+            fit, given, batch_of, m, [evaluator.cases[i][0] for i in every], evaluator,
+            max_nfev=max_nfev, diff_step=diff_step, stats_step=stats_step, progress=progress,
+            keep_correlated=keep_correlated, cross_validate=cross_validate,
+            label="max |residual| / target", observations=2 * m)
         after = metrics_of(every + extra, fit, [out.x])[0]
         limit_before, limit_after = before[m:], after[m:]
         before, after = before[:m], after[:m]
         cv = np.full_like(after, np.nan)
-        if cross_validate:
-            groups = _train_groups([evaluator.cases[i][0] for i in every])
-            for g, x in _cross_validate(fit, out.x, groups, lambda rows: batch_of(rows, fit),
-                                        max_nfev=max_nfev, diff_step=diff_step,
-                                        last_failure=last_failure):
-                if x is not None:
-                    cv[g] = metrics_of(g, fit, [x])[0]
+        for g, x in refits:
+            if x is not None:
+                cv[g] = metrics_of(g, fit, [x])[0]
         runs = evaluator.runs
     finally:
         if own:
             evaluator.close()
-    for p, why in held:
-        stats.warnings.insert(0, f"{p.name} held at its start value "
-                                 f"{getattr(start, p.field):g} {p.unit}: {why}")
-    return CouplerCalibration(scenarios, list(fit), original, coupler_at(fit, out.x), brake, before,
-                              after, cv, stats.ci95, stats.correlation, stats.at_bound,
-                              stats.warnings, out.nfev, runs, stats.dof, out.status > 0,
-                              out.message, held, list(limits), limit_before, limit_after,
-                              draft_limit_N)
+    return CouplerCalibration(scenarios=scenarios, start=original, params=coupler_at(fit, out.x),
+                              brake=brake, before=before, after=after, cv=cv,
+                              limits=list(limits), limit_before=limit_before,
+                              limit_after=limit_after, draft_limit_N=draft_limit_N,
+                              **_outcome(fit, out, stats, runs, held))
 
 
 # --------------------------------------------------------------------------- report

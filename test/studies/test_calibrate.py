@@ -16,6 +16,14 @@ FIT = ["t_app", "v_air", "t_fill", "k0"]
 # --------------------------------------------------------------------------- identifiability
 
 
+def synthetic_targets(ev, numbers, cases, truth):
+    """Targets whose reference distances the evaluator's trains reach with ``truth``."""
+    distances = ev.distances([truth])[0]
+    return [cal_mod.Target(str(k), c, v, float(d), "synthetic",
+                           cal_mod.braked_weight_percent(c), k)
+            for k, (c, v), d in zip(numbers, cases, distances)]
+
+
 @pytest.fixture(scope="module")
 def synthetic():
     """Distances made with known parameters, fitted from a start 30 % away from them.
@@ -33,10 +41,7 @@ def synthetic():
     lut = load_coupler_lut("couplers/buffer_hook_fig4.yaml")
     cases = [(catalogue[k].consist(), catalogue[k].speed_kmh) for k in numbers]
     with cal_mod.DistanceEvaluator(cases, lut, step_s=step_s, workers=2) as ev:
-        distances = ev.distances([truth])[0]
-        targets = [cal_mod.Target(str(k), c, v, float(d), "synthetic",
-                                  cal_mod.braked_weight_percent(c), k)
-                   for k, (c, v), d in zip(numbers, cases, distances)]
+        targets = synthetic_targets(ev, numbers, cases, truth)
         start = replace(truth, t_app_s=1.3 * truth.t_app_s, v_air_m_s=0.7 * truth.v_air_m_s,
                         t_fill_s=1.3 * truth.t_fill_s, k0=0.7 * truth.k0)
         result = cal_mod.calibrate(targets, FIT, start, lut, step_s=step_s, evaluator=ev)
@@ -71,10 +76,7 @@ def test_correlated_parameters_are_held_and_each_train_predicted():
     lut = load_coupler_lut()
     cases = [(catalogue[k].consist(), catalogue[k].speed_kmh) for k in numbers]
     with cal_mod.DistanceEvaluator(cases, lut, step_s=step_s, workers=2) as ev:
-        distances = ev.distances([truth])[0]
-        targets = [cal_mod.Target(str(k), c, v, float(d), "synthetic",
-                                  cal_mod.braked_weight_percent(c), k)
-                   for k, (c, v), d in zip(numbers, cases, distances)]
+        targets = synthetic_targets(ev, numbers, cases, truth)
         start = replace(truth, t_app_s=1.3 * truth.t_app_s)
         result = cal_mod.calibrate(targets, ["t_app", "t_fill"], start, lut, step_s=step_s,
                                    evaluator=ev, keep_correlated=False, cross_validate=True)
