@@ -7,11 +7,14 @@ deterministic and as fast as the loop. Every control period the controller
 
 1. calls ``<plant>/step`` (``std_srvs/srv/Trigger``): the plant advances one chunk
    (``chunk_s`` of simulated time) and publishes the new state;
-2. reads the head vehicle's speed from ``vehicles/speed`` (``std_msgs/msg/Float64MultiArray``,
-   [m/s], vehicle 0 = head);
+2. reads the head vehicle's speed from ``vehicles/state`` (``sensor_msgs/msg/JointState``,
+   velocity [m/s] of ``vehicle_0``, the head), the state whose ``header.stamp`` is the
+   simulated time the step reached;
 3. publishes ``traction_command`` (``std_msgs/msg/Float64``: -1 full dynamic brake to 1 full
    traction) and ``brake_demand`` (``std_msgs/msg/Float64``: 0 released to 1 full service
-   brake), which the plant applies during the next chunk.
+   brake), which the plant applies during the next chunk: before a step it takes every
+   command that reached it, and the commands travel on reliable readers, so a command
+   published before the ``~/step`` call is in that step.
 
 The law (:class:`SpeedLaw`): a PI controller on the speed error commands traction or the
 dynamic brake; the service brake helps only while the dynamic brake is saturated and the train
@@ -39,7 +42,8 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from std_msgs.msg import Float64, Float64MultiArray
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 KMH_PER_M_S = 3.6
@@ -189,13 +193,11 @@ class SpeedController(Node):
         self._plant = p["plant"]
         self._traction_pub = self.create_publisher(Float64, "traction_command", RELIABLE)
         self._brake_pub = self.create_publisher(Float64, "brake_demand", RELIABLE)
-        self._speed_sub = self.create_subscription(Float64MultiArray, "vehicles/speed",
-                                                   self._on_speed, RELIABLE)
+        self._state_sub = self.create_subscription(JointState, "vehicles/state",
+                                                   self._on_state, RELIABLE)
         self._step_client = self.create_client(Trigger, f"{self._plant}/step")
         self._param_client = self.create_client(GetParameters, f"{self._plant}/get_parameters")
-        self._speeds: dict[int, float] = {}  # head speed [m/s] by the state's number
-        self._arrivals = 0                   # vehicles/speed messages received
-        self._next_state = 2                 # number of the first state after a step
+        self._speeds: dict[int, float] = {}  # head speed [m/s] by simulated time [ns]
         self._head_speed_m_s = math.nan
         self._spinner = SingleThreadedExecutor(context=self.context)
         self._spinner.add_node(self)
@@ -210,12 +212,10 @@ class SpeedController(Node):
             values[name] = self.declare_parameter(name, default, descriptor).value
         return values
 
-    def _on_speed(self, msg: Float64MultiArray, info) -> None:
-        # the plant's writer numbers its states: 1 is the initial state, then one per chunk;
-        # a state is known by its number however late it arrives (a middleware that does not
-        # number them gets the order of arrival)
-        self._arrivals += 1
-        self._speeds[info.get("publication_sequence_number") or self._arrivals] = msg.data[0]
+    def _on_state(self, msg: JointState) -> None:
+        # a state is known by its simulated time, however late it arrives
+        stamp = msg.header.stamp
+        self._speeds[stamp.sec * 1_000_000_000 + stamp.nanosec] = msg.velocity[0]
 
     # ------------------------------------------------------------------ talking to the plant
 
@@ -262,50 +262,34 @@ class SpeedController(Node):
                                f"steps_per_call:=1 (got {lockstep}, {steps})")
         self._spin_until(lambda: self._traction_pub.get_subscription_count() > 0
                          and self._brake_pub.get_subscription_count() > 0
-                         and self._speed_sub.get_publisher_count() > 0,
+                         and self._state_sub.get_publisher_count() > 0,
                          "match with the plant's topics", self.connect_timeout_s)
         return float(chunk_s)
 
-    def _step(self) -> None:
-        """Advance the plant one chunk and take the state it published.
+    def _step(self, after_ns: int) -> None:
+        """Advance the plant one chunk and take the state it published then, the first one
+        stamped after ``after_ns`` [ns] (half a chunk before the time the step reaches).
 
-        The state is the acknowledgement: the plant publishes it before it answers, on another
-        channel, and it is the one numbered at least one above the previous step's (the
-        plant's initial state, 1, may arrive late: it is never taken for a step's). A refusal
-        comes as the answer; an answer lost on the way does not matter once the state is in.
+        The plant publishes that state before it answers, on another reader; whichever comes
+        first, the step is done once both are in. A refusal comes as the answer.
         """
         future = self._step_client.call_async(Trigger.Request())
 
         def newest() -> int:
-            return max(self._speeds, default=0)
+            return max(self._speeds, default=-1)
 
-        self._spin_until(lambda: newest() >= self._next_state
-                         or (future.done() and not future.result().success),
+        self._spin_until(lambda: future.done() and (newest() > after_ns
+                                                    or not future.result().success),
                          f"the state after {self._plant}/step")
-        if newest() < self._next_state:
+        if not future.result().success:
             raise RuntimeError(f"{self._plant}/step refused: {future.result().message}")
-        number = newest()
-        self._head_speed_m_s = self._speeds[number]
+        self._head_speed_m_s = self._speeds[newest()]
         self._speeds.clear()
-        self._next_state = number + 1
 
     def _send(self, traction: float, brake_demand: float) -> None:
-        """Publish the commands so that the plant applies them in the next step."""
+        """Publish the commands; the plant applies them in the next step."""
         self._traction_pub.publish(Float64(data=traction))
         self._brake_pub.publish(Float64(data=brake_demand))
-        # Lock-step ordering: the command computed from the state after step k must act in
-        # step k+1, so sim_node must take it before the next ~/step request. Its one executor
-        # thread passes commands and requests to the plant thread in the order it takes them,
-        # and of what is waiting it takes messages before requests; but a message and a
-        # request sent right after it arrive through different readers, and the request
-        # overtakes the message now and then (a few times per thousand steps when stepping at
-        # once). sim_node does not acknowledge commands (its diagnostics come once per wall
-        # second; a reliable publisher's wait_for_all_acked waits for the middleware's periodic
-        # heartbeat, seconds per step). One cheap round trip through the plant's executor (an
-        # empty get_parameters call) gives the commands that much head start, so they are
-        # waiting in the plant's readers when the ~/step request arrives.
-        self._query(self._param_client, GetParameters.Request(names=[]),
-                   f"{self._plant}/get_parameters")
 
     # ------------------------------------------------------------------ the loop
 
@@ -318,8 +302,8 @@ class SpeedController(Node):
         steps, report_every = 0, max(1, round(10.0 / dt_s))
         # the first step runs with the plant's initial inputs (traction and brake off)
         while self.duration_s <= 0.0 or steps * dt_s < self.duration_s - 1e-9:
-            self._step()
             steps += 1
+            self._step(round((steps - 0.5) * dt_s * 1e9))
             traction, brake = self.law.update(self._head_speed_m_s, dt_s)
             self._send(traction, brake)
             if steps % report_every == 0:

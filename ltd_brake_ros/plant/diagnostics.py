@@ -16,6 +16,28 @@ OK, WARN, ERROR = 0, 1, 2
 DIAGNOSTICS_PERIOD_S = 1.0
 
 
+def format_fixed(value: float, digits: int = 3) -> str:
+    """``value`` with ``digits`` decimals, never ``-0.000`` (a negative zero or a tiny negative
+    value rounds to ``0.000``).
+
+    Parameters
+    ----------
+    value : float
+    digits : int, optional
+
+    Returns
+    -------
+    str
+    """
+    text = f"{value:.{digits}f}"
+    return text[1:] if text.startswith("-") and not text.strip("-0.") else text
+
+
+def format_general(value: float) -> str:
+    """``value`` in ``%g`` form, never ``-0``."""
+    return f"{value + 0.0:g}"
+
+
 @dataclass(frozen=True)
 class PlantStatus:
     """One diagnostics report.
@@ -45,7 +67,12 @@ class PaceWindow:
     """
 
     def __init__(self, now: float):
-        self._wall, self._sim_s, self._overruns = now, 0.0, 0
+        self._wall, self._sim_s, self._overruns, self._rejected = now, 0.0, 0, 0
+
+    def take_rejected(self, rejected: int) -> int:
+        """Inputs rejected since the previous call, given the count since start-up."""
+        new, self._rejected = rejected - self._rejected, rejected
+        return new
 
     def restart(self, now: float, sim_s: float = 0.0) -> None:
         """Start the window again at wall time ``now`` and simulated time ``sim_s`` [s]."""
@@ -82,9 +109,10 @@ class PaceWindow:
 def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: float = 0.0,
                  window_s: float = 0.0, new_overruns: int = 0, chunks: int = 0,
                  overruns: int = 0, real_time_factor: float = 0.0,
-                 commands: Commands = Commands(), rejected: int = 0, handled: int = 0,
-                 resets: int = 0, recording: str = "off",
-                 recording_error: str | None = None) -> PlantStatus:
+                 commands: Commands = Commands(), rejected: int = 0, new_rejected: int = 0,
+                 handled: int = 0, resets: int = 0, recording: str = "off",
+                 recording_error: str | None = None,
+                 verdict: tuple[int, str, dict] | None = None) -> PlantStatus:
     """The diagnostics report of the plant.
 
     Parameters
@@ -92,7 +120,7 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
     sim : Simulator
         The plant's simulator (time, brake command, speed, coupler peaks, stop).
     state : str
-        ``failed``, ``finished``, ``lockstep``, ``paused`` or ``running``.
+        ``failed``, ``finished``, ``following``, ``lockstep``, ``paused`` or ``running``.
     reason : str
         Why it failed or finished (the message then).
     achieved, window_s, new_overruns
@@ -104,13 +132,18 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
     commands : Commands
         The inputs in force.
     rejected, handled : int
-        Input messages rejected, and handled in all.
+        Input messages rejected, and handled in all, since start-up.
+    new_rejected : int
+        Input messages rejected in the window (a WARN).
     resets : int
         Resets done since start-up.
     recording : str
         The bag folder, or ``off``, ``failed``, ``finished``.
     recording_error : str or None
         Why the recording stopped.
+    verdict : (int, str, dict) or None
+        A verdict on the run so far (level, one line, key/values added to the report), e.g.
+        on coupler strength and wheel-rail adhesion; None when no verdict is computed.
 
     Returns
     -------
@@ -122,27 +155,33 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
         level, message = OK, reason
     else:
         level, message = OK, state
+        problems = []
         if new_overruns:
-            level, message = WARN, f"{new_overruns} chunk overrun(s) in the last {window_s:.1f} s"
+            problems.append(f"{new_overruns} chunk overrun(s)")
+        if new_rejected:
+            problems.append(f"{new_rejected} input(s) rejected")
+        if problems:
+            level, message = WARN, f"{' and '.join(problems)} in the last {window_s:.1f} s"
     peaks = sim.coupler_peaks()
+    f3, g = format_fixed, format_general
     values = {
         "state": state,
-        "sim_time_s": f"{sim.time_s:.3f}",
-        "real_time_factor": f"{real_time_factor:g}",
-        "achieved_real_time_factor": f"{achieved:.3f}",
+        "sim_time_s": f3(sim.time_s),
+        "real_time_factor": g(real_time_factor),
+        "achieved_real_time_factor": f3(achieved),
         "chunks": str(chunks),
         "chunk_overruns": str(overruns),
         "emergency_command": "true" if commands.emergency else "false",
         "brake_command_time_s": "none" if sim.command_time_s is None
-        else f"{sim.command_time_s:.3f}",
-        "head_speed_kmh": f"{float(sim.snapshot().speed_m_s[0]) * KMH_PER_MS:.3f}",
-        "peak_draft_kN": f"{peaks.draft_N / 1e3:.3f}",
+        else f3(sim.command_time_s),
+        "head_speed_kmh": f3(float(sim.snapshot().speed_m_s[0]) * KMH_PER_MS),
+        "peak_draft_kN": f3(peaks.draft_N / 1e3),
         "peak_draft_coupler": str(peaks.draft_coupler),
-        "peak_buff_kN": f"{peaks.buff_N / 1e3:.3f}",
+        "peak_buff_kN": f3(peaks.buff_N / 1e3),
         "peak_buff_coupler": str(peaks.buff_coupler),
         "couplers_beyond_lut": str(int((sim.lut_excursion_m != 0.0).sum())),
-        "brake_demand": f"{commands.brake_demand:g}",
-        "traction_command": f"{commands.traction:g}",
+        "brake_demand": g(commands.brake_demand),
+        "traction_command": g(commands.traction),
         "rejected_inputs": str(rejected),
         "inputs_handled": str(handled),
         "resets": str(resets),
@@ -153,8 +192,13 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
         if level == OK:
             level, message = WARN, "recording stopped"
     if sim.stopping_distance_m is not None:
-        values["stopping_distance_m"] = f"{sim.stopping_distance_m:.3f}"
-        values["stop_time_s"] = f"{sim.stop_time_s - (sim.command_time_s or 0.0):.3f}"
+        values["stopping_distance_m"] = f3(sim.stopping_distance_m)
+        values["stop_time_s"] = f3(sim.stop_time_s - (sim.command_time_s or 0.0))
+    if verdict is not None:
+        v_level, v_message, v_values = verdict
+        values.update(v_values)
+        if v_level > level:
+            level, message = v_level, v_message
     if state == "failed":
         values["error"] = reason
     return PlantStatus(level, message, values)

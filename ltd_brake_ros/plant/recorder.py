@@ -88,10 +88,16 @@ class Recorder:
         self._writer = self._start(self.base)
         self._suffix, self.error = 1, None
 
-    def reopen(self) -> None:
+    def reopen(self, topics: Sequence[tuple[str, str, str]] | None = None,
+               metadata: dict | None = None) -> None:
         """Start the next run's bag in the next free ``<base>_k``, then finish the current one.
 
         Nothing changes when the new bag cannot be opened: the current bag (if any) stays open.
+
+        Parameters
+        ----------
+        topics, metadata : optional
+            The next run's, when they differ from the current run's (as in the constructor).
 
         Raises
         ------
@@ -104,16 +110,20 @@ class Recorder:
         if suffix is None:
             raise StartupError("record_dir", f"no free folder from {self.base}_{first} to "
                                f"{self.base}_{first + MAX_FOLDER_SEARCH - 1}")
-        rec = self._start(f"{self.base}_{suffix}")
+        rec = self._start(f"{self.base}_{suffix}", topics, metadata)
         self.close()
         self._writer, self._suffix, self.error = rec, suffix, None
+        self._topics = list(topics) if topics is not None else self._topics
+        self._metadata = metadata if metadata is not None else self._metadata
 
-    def _start(self, folder: str):
-        """A writer on ``folder`` with every topic declared."""
+    def _start(self, folder: str, topics=None, metadata=None):
+        """A writer on ``folder`` with every topic declared (``topics`` and ``metadata``
+        default to the current run's)."""
         rec = None
         try:
-            rec = self._make_writer(folder, metadata=self._metadata)
-            for topic, msg_type, qos in self._topics:
+            rec = self._make_writer(folder, metadata=self._metadata if metadata is None
+                                    else metadata)
+            for topic, msg_type, qos in self._topics if topics is None else topics:
                 rec.add_topic(topic, msg_type, qos)
         except BaseException as exc:
             # a half-opened bag (disk full, SIGINT at start-up) is closed: no writer thread

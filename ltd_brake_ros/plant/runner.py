@@ -5,7 +5,9 @@ One thread owns the simulator and does every advance and every publication; othe
 between two chunks. So a chunk is always advanced and published in one place and lock-step runs
 are deterministic. Free-running chunks are due at ``start + k * chunk_s / real_time_factor`` on
 the wall clock; a chunk finished after the next one was due counts as an overrun and restarts
-the schedule instead of catching up.
+the schedule instead of catching up. A plant that follows another plant's clock
+(``follow_clock``) advances instead to the times it is given (:meth:`PlantRunner.follow`), so
+several trains share one simulated time.
 
 Nothing here imports ROS: the host passes callbacks that publish a state, publish a diagnostics
 report and observe a handled input, a logger, and the clock (:class:`~.pacing.Clock`), so pacing,
@@ -21,7 +23,8 @@ from typing import Any, Callable, Mapping
 
 from ..inputs.commands import COMMAND_RANGES
 from ..simulator import Commands, SimulationError, Simulator, Snapshot
-from .diagnostics import DIAGNOSTICS_PERIOD_S, PaceWindow, PlantStatus, plant_status
+from .diagnostics import (DIAGNOSTICS_PERIOD_S, PaceWindow, PlantStatus, format_fixed,
+                          plant_status)
 from .pacing import Clock, Pacer
 from .recorder import Recorder
 from .settings import PlantSettings, StartupError
@@ -41,6 +44,9 @@ YIELD_POLL_S = 0.0005
 YIELD_MAX_S = 0.01
 #: Inputs the plant takes: the emergency brake (bool) and the numeric :data:`COMMAND_RANGES`.
 INPUTS = ("emergency", *COMMAND_RANGES)
+#: Why a following plant refuses to be stepped or paused.
+FOLLOWING = ("this plant follows the clock of another (clock:=follow): it advances with that "
+             "clock; step or pause the plant that publishes it")
 
 
 @dataclass
@@ -133,8 +139,14 @@ class PlantRunner:
         #: Resets done (a refused one does not count).
         self.resets = 0
         self.rejected: dict[str, int] = {}
-        #: Simulated time of the last published state [ns].
+        #: Simulated time of the last advanced (published or not) state [ns].
         self.stamp_ns = 0
+        #: Chunks advanced since the last reset (``publish_every`` counts them).
+        self.run_chunks = 0
+        #: The latest time of the followed clock [s] (None before the first).
+        self.follow_target_s: float | None = None
+        self._follow_pending = False
+        self._clock_back_warned = False
         self._next_reject_log: dict[str, float] = {}
         self._auto_brake_done = False
         self._lut_warned = False
@@ -152,7 +164,7 @@ class PlantRunner:
 
     @property
     def sim_time_s(self) -> float:
-        """Simulated time of the last published state [s]."""
+        """Simulated time of the last advanced state [s]."""
         return self.stamp_ns / 1e9
 
     def start(self) -> None:
@@ -188,9 +200,20 @@ class PlantRunner:
             raise KeyError(f"unknown input {name!r}; expected one of {', '.join(INPUTS)}")
         return self.submit(lambda: self._on_input(name, value, message))
 
-    def reset(self) -> Job:
-        """Request the initial state (t = 0, brake released); a new bag when recording."""
-        return self.submit(self._reset)
+    def reset(self, replacement: tuple[Simulator, PlantSettings] | None = None,
+              recording: tuple[list, dict] | None = None) -> Job:
+        """Request the initial state (t = 0, brake released); a new bag when recording.
+
+        Parameters
+        ----------
+        replacement : (Simulator, PlantSettings), optional
+            A new run (other train, speed, files, run policy) to start instead of the
+            current one; ``chunk_s``, ``lockstep``, ``follow_clock`` and ``publish_every``
+            stay those in force.
+        recording : (list, dict), optional
+            Topics and metadata of the new run's bag (see :meth:`Recorder.reopen`).
+        """
+        return self.submit(lambda: self._reset(replacement, recording))
 
     def pause(self, pause: bool) -> Job:
         """Request a pause (True) or the end of one (False)."""
@@ -200,6 +223,17 @@ class PlantRunner:
         """Request :attr:`steps_per_call` chunks (lock-step mode or paused only)."""
         chunks = self.steps_per_call
         return self.submit(lambda: self._step(chunks))
+
+    def follow(self, time_ns: int) -> None:
+        """Let a following plant advance to the followed clock's ``time_ns`` [ns].
+
+        Whole chunks are advanced while they end at or before that time; only the latest
+        time counts when several arrive before the plant thread gets to them.
+        """
+        self.follow_target_s = time_ns / 1e9
+        if not self._follow_pending:
+            self._follow_pending = True
+            self.submit(self._follow)
 
     def set_real_time_factor(self, value: float) -> Job:
         """Request a new real-time factor; the schedule restarts from now."""
@@ -280,7 +314,8 @@ class PlantRunner:
         elif self.finished.is_set():
             state, reason = "finished", self.finish_reason
         else:
-            state = "lockstep" if self.settings.lockstep else \
+            state = "following" if self.settings.follow_clock else \
+                "lockstep" if self.settings.lockstep else \
                 "paused" if self.paused else "running"
             reason = ""
         rec = self.recorder
@@ -288,7 +323,8 @@ class PlantRunner:
             sim, state=state, reason=reason, achieved=achieved, window_s=window_s,
             new_overruns=new, chunks=stats.chunks, overruns=stats.overruns,
             real_time_factor=self.real_time_factor, commands=self.commands,
-            rejected=sum(self.rejected.values()), handled=self.handled, resets=self.resets,
+            rejected=sum(self.rejected.values()), new_rejected=self._window.take_rejected(
+                sum(self.rejected.values())), handled=self.handled, resets=self.resets,
             recording="off" if rec is None else rec.state,
             recording_error=None if rec is None else rec.error)
 
@@ -319,7 +355,8 @@ class PlantRunner:
         self._publish_status(self._status(now))
 
     def _free_running(self) -> bool:
-        return not (self.settings.lockstep or self.paused or self.failure
+        s = self.settings
+        return not (s.lockstep or s.follow_clock or self.paused or self.failure
                     or self.finished.is_set())
 
     def _due(self) -> float:
@@ -332,7 +369,7 @@ class PlantRunner:
         self._next_index = 0 if first_due_now else 1
 
     def _paced_chunk(self, due: float) -> None:
-        self._run_chunk()
+        self._run_chunk(self._publish_due())
         if self.real_time_factor <= 0.0:
             self._clock.sleep(0)  # let a receiving thread take the GIL between chunks
             return
@@ -348,8 +385,13 @@ class PlantRunner:
         self.stamp_ns = round(snap.time_s * 1e9)
         self._publish_state(snap)
 
-    def _run_chunk(self) -> bool:
-        """Advance one chunk and publish the state; False if the simulator failed."""
+    def _publish_due(self) -> bool:
+        """Whether the chunk about to run is one ``publish_every`` publishes."""
+        return (self.run_chunks + 1) % self.settings.publish_every == 0
+
+    def _run_chunk(self, publish: bool = True) -> bool:
+        """Advance one chunk and publish its state if ``publish``; False if the simulator
+        failed."""
         sim, s = self.sim, self.settings
         if 0.0 <= s.auto_brake_at_s <= sim.time_s + TIME_EPS_S and not self._auto_brake_done:
             self._auto_brake_done = True
@@ -363,7 +405,11 @@ class PlantRunner:
             self._fail(f"{type(exc).__name__}: {exc}")
             return False
         self.stats.chunks += 1
-        self._publish(snap)
+        self.run_chunks += 1
+        if publish:
+            self._publish(snap)
+        else:
+            self.stamp_ns = round(snap.time_s * 1e9)
         log = self._log
         for event in snap.events:
             if event.kind != "coupler_out_of_lut":
@@ -419,7 +465,7 @@ class PlantRunner:
                 f"from {lo:g} to {hi:g}; keeping the previous value ({self.rejected[name]} "
                 "rejected so far)")
 
-    def _reset(self) -> tuple[bool, str]:
+    def _reset(self, replacement=None, recording_of_run=None) -> tuple[bool, str]:
         rec, recording = self.recorder, ""
         if rec is not None:
             # one run per bag (the report assumes it): the next run's bag is opened first, so
@@ -427,15 +473,24 @@ class PlantRunner:
             # recording has stopped); then the current bag is finished
             current = rec.state
             try:
-                rec.reopen()
+                rec.reopen(*(recording_of_run or ()))
             except StartupError as exc:
                 goes_on = f"recording to {current}" if rec.active else "without recording"
                 text = f"not reset: {exc.reason}; the run goes on {goes_on}"
                 self._log.error(text)
                 return False, text
             recording = f"; recording to {rec.state}"
+        if replacement is not None:
+            sim, settings = replacement
+            s = self.settings
+            self.sim = sim
+            self.settings = replace(settings, chunk_s=s.chunk_s, lockstep=s.lockstep,
+                                    follow_clock=s.follow_clock, publish_every=s.publish_every,
+                                    real_time_factor=self.real_time_factor)
         snap = self.sim.reset()
         self.resets += 1
+        self.run_chunks = 0
+        self._clock_back_warned = False
         self.commands = Commands()
         self._auto_brake_done = False
         self._lut_warned = False
@@ -448,6 +503,8 @@ class PlantRunner:
         return True, f"reset to the initial state (brake released, t = 0 s){recording}"
 
     def _pause(self, pause: bool) -> tuple[bool, str]:
+        if self.settings.follow_clock:
+            return False, FOLLOWING
         if self.paused and not pause:
             self._restart_schedule(self._clock.monotonic())
         self.paused = pause
@@ -457,6 +514,8 @@ class PlantRunner:
         return True, text
 
     def _step(self, chunks: int) -> tuple[bool, str]:
+        if self.settings.follow_clock:
+            return False, FOLLOWING
         if not (self.settings.lockstep or self.paused):
             return False, "the plant is free-running: pause it (~/pause) or start it with " \
                           "lockstep:=true to step it"
@@ -466,16 +525,40 @@ class PlantRunner:
             return False, "max_sim_time_s reached; the node is shutting down"
         done = 0
         while done < chunks and not self.finished.is_set():
-            if not self._run_chunk():
+            # the last chunk of a request is always published: it answers the request
+            if not self._run_chunk(done + 1 == chunks or self._publish_due()):
                 return False, f"simulation failed: {self.failure}; call ~/reset"
             done += 1
             self._maybe_report()
         c = self.commands
-        # the inputs the chunks ran with, so a controller can check its last command arrived
+        # the inputs the chunks ran with (exact values), so a controller can check that its
+        # last command was in the step
         return True, (f"advanced {done} chunk(s) to t = {self.sim.time_s:.3f} s with "
                       f"emergency={str(c.emergency).lower()} "
-                      f"brake_demand={c.brake_demand:g} traction={c.traction:g} "
+                      f"brake_demand={c.brake_demand!r} traction={c.traction!r} "
                       f"(inputs handled: {self.handled})")
+
+    def _follow(self) -> None:
+        # advance whole chunks up to the followed clock's latest time
+        self._follow_pending = False
+        target = self.follow_target_s
+        if target is None or self.failure or self.finished.is_set():
+            return
+        sim, chunk_s = self.sim, self.settings.chunk_s
+        if target < sim.time_s - chunk_s - TIME_EPS_S:
+            if not self._clock_back_warned:
+                self._clock_back_warned = True
+                self._log.warning(
+                    f"the followed clock went back to t = {format_fixed(target)} s (its "
+                    f"source was reset?); this train holds at t = {format_fixed(sim.time_s)} s "
+                    "until the clock passes it again (~/reset starts it from t = 0)")
+            return
+        self._clock_back_warned = False
+        while sim.time_s + chunk_s <= target + TIME_EPS_S and not self.finished.is_set():
+            last = sim.time_s + 2.0 * chunk_s > target + TIME_EPS_S
+            if not self._run_chunk(last or self._publish_due()):
+                return
+            self._maybe_report()
 
     def _set_real_time_factor(self, value: float) -> None:
         now = self._clock.monotonic()

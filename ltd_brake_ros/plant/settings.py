@@ -44,6 +44,12 @@ class PlantSettings:
         Finish once the simulated time reaches this [s]; negative = never.
     shutdown_after_stop_s : float
         Finish this long after the train stopped [s simulated]; negative = never.
+    follow_clock : bool
+        Advance to the times another plant's clock reports (:meth:`PlantRunner.follow`)
+        instead of by itself; stepping and pausing are refused.
+    publish_every : int
+        Publish the state after every this many chunks when free-running or following (a
+        step's last chunk and a reset are always published).
     """
 
     chunk_s: float = 0.02
@@ -53,3 +59,5 @@ class PlantSettings:
     auto_brake_at_s: float = -1.0
     max_sim_time_s: float = -1.0
     shutdown_after_stop_s: float = -1.0
+    follow_clock: bool = False
+    publish_every: int = 1

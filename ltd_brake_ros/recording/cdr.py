@@ -10,7 +10,7 @@ import struct
 
 import numpy as np
 
-__all__ = ["decode_float64_array", "decode_bool"]
+__all__ = ["decode_float64_array", "decode_bool", "decode_joint_state"]
 
 
 def _align(pos: int, n: int) -> int:
@@ -82,3 +82,61 @@ def decode_bool(data: bytes) -> bool:
     if len(data) < 5:
         raise ValueError(f"{len(data)} bytes is too short for a Bool")
     return data[4] != 0
+
+
+def decode_joint_state(data: bytes) -> tuple[int, list[str], np.ndarray, np.ndarray, np.ndarray]:
+    """Stamp, names and values of a CDR-serialized ``sensor_msgs/msg/JointState``.
+
+    Parameters
+    ----------
+    data : bytes
+
+    Returns
+    -------
+    stamp_ns : int
+        ``header.stamp`` [ns].
+    names : list of str
+    position, velocity, effort : ndarray
+        Read-only views of ``data`` (float64).
+
+    Raises
+    ------
+    ValueError
+        ``data`` is not such a message (too short for what it states).
+    """
+    n_bytes = len(data)
+    end = "<" if n_bytes > 1 and data[1] & 1 else ">"
+    u32 = struct.Struct(end + "I").unpack_from
+
+    def need(pos: int, what: str) -> None:
+        if pos > n_bytes:
+            raise ValueError(f"{what} runs past the end of the {n_bytes}-byte JointState")
+
+    def string(pos: int, what: str) -> tuple[str, int]:
+        pos = _align(pos, 4)
+        need(pos + 4, what)
+        (length,) = u32(data, pos)
+        need(pos + 4 + length, what)
+        return bytes(data[pos + 4:pos + 3 + length]).decode(errors="replace"), pos + 4 + length
+
+    need(12, "the header")
+    sec, nanosec = struct.unpack_from(end + "iI", data, 4)
+    _, pos = string(12, "header.frame_id")
+    pos = _align(pos, 4)
+    need(pos + 4, "the names")
+    (count,) = u32(data, pos)
+    pos += 4
+    names = []
+    for _ in range(count):
+        name, pos = string(pos, "a name")
+        names.append(name)
+    arrays = []
+    for what in ("position", "velocity", "effort"):
+        pos = _align(pos, 4)
+        need(pos + 4, what)
+        (n,) = u32(data, pos)
+        pos = _align(pos + 4, 8)
+        need(pos + 8 * n, f"{what} ({n} values)")
+        arrays.append(np.frombuffer(data, dtype=end + "f8", count=n, offset=pos))
+        pos += 8 * n
+    return sec * 1_000_000_000 + nanosec, names, *arrays

@@ -10,7 +10,8 @@ import struct
 
 import numpy as np
 
-__all__ = ["encode_bool", "encode_clock", "encode_float64", "encode_float64_array"]
+__all__ = ["Float64ArrayEncoder", "JointStateEncoder", "encode_bool", "encode_clock",
+           "encode_float64", "encode_float64_array", "encode_joint_state"]
 
 #: CDR encapsulation header: plain CDR, little endian.
 _HEADER = b"\x00\x01\x00\x00"
@@ -21,11 +22,54 @@ def _pad(buf: bytearray, n: int) -> None:
     buf += b"\x00" * (-(len(buf) - 4) % n)
 
 
+def _string(buf: bytearray, text: str) -> None:
+    # a CDR string: aligned length including the terminating NUL, the bytes, the NUL
+    raw = text.encode() + b"\x00"
+    _pad(buf, 4)
+    buf += struct.pack("<I", len(raw))
+    buf += raw
+
+
+class Float64ArrayEncoder:
+    """One-dimensional ``std_msgs/msg/Float64MultiArray`` messages of a fixed length.
+
+    ``layout.dim`` holds one dimension labelled ``label`` with size and stride ``n``;
+    ``layout.data_offset`` is 0. Everything before the data is encoded once.
+
+    Parameters
+    ----------
+    label : str
+        ``layout.dim[0].label`` (``vehicle`` or ``coupler``).
+    n : int
+        Number of values.
+    """
+
+    def __init__(self, label: str, n: int):
+        buf = bytearray(_HEADER)
+        buf += struct.pack("<I", 1)
+        _string(buf, label)
+        _pad(buf, 4)
+        buf += struct.pack("<III", n, n, 0)  # size, stride, then layout.data_offset
+        buf += struct.pack("<I", n)
+        _pad(buf, 8)
+        self.n, self._prefix = n, bytes(buf)
+
+    def encode(self, values) -> bytes:
+        """The message holding ``values`` (``n`` floats, SI units).
+
+        Raises
+        ------
+        ValueError
+            ``values`` does not hold ``n`` values.
+        """
+        data = np.ascontiguousarray(values, dtype="<f8")
+        if data.size != self.n:
+            raise ValueError(f"expected {self.n} values, got {data.size}")
+        return self._prefix + data.tobytes()
+
+
 def encode_float64_array(label: str, values) -> bytes:
     """A one-dimensional ``std_msgs/msg/Float64MultiArray`` as the plant fills it.
-
-    ``layout.dim`` holds one dimension labelled ``label`` with size and stride the number of
-    values; ``layout.data_offset`` is 0.
 
     Parameters
     ----------
@@ -39,17 +83,79 @@ def encode_float64_array(label: str, values) -> bytes:
     bytes
     """
     data = np.ascontiguousarray(values, dtype="<f8").ravel()
-    n = int(data.size)
-    text = label.encode() + b"\x00"
-    buf = bytearray(_HEADER)
-    buf += struct.pack("<II", 1, len(text))
-    buf += text
-    _pad(buf, 4)
-    buf += struct.pack("<III", n, n, 0)  # size, stride, then layout.data_offset
-    buf += struct.pack("<I", n)
-    _pad(buf, 8)
-    buf += data.tobytes()
-    return bytes(buf)
+    return Float64ArrayEncoder(label, int(data.size)).encode(data)
+
+
+class JointStateEncoder:
+    """``sensor_msgs/msg/JointState`` messages with fixed joint names.
+
+    The header (``stamp``, ``frame_id``) and the names are laid out once; each message then
+    writes the stamp and the three value arrays into that layout.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Joint names (``vehicle_0``, ...).
+    frame_id : str, optional
+        ``header.frame_id``.
+    """
+
+    def __init__(self, names, frame_id: str = ""):
+        names = list(names)
+        n = self.n = len(names)
+        buf = bytearray(_HEADER)
+        buf += b"\x00" * 8  # header.stamp: sec, nanosec
+        _string(buf, frame_id)
+        _pad(buf, 4)
+        buf += struct.pack("<I", n)
+        for name in names:
+            _string(buf, name)
+        self._offsets = []
+        for _ in range(3):  # position, velocity, effort
+            _pad(buf, 4)
+            buf += struct.pack("<I", n)
+            _pad(buf, 8)  # as rclpy writes it, even for no values
+            self._offsets.append(len(buf))
+            buf += b"\x00" * (8 * n)
+        self._buf = buf
+        self._views = [np.frombuffer(buf, dtype="<f8", count=n, offset=o)
+                       for o in self._offsets]
+
+    def encode(self, stamp_ns: int, position, velocity, effort) -> bytes:
+        """The message at simulated time ``stamp_ns`` [ns] with ``n`` values per array.
+
+        Raises
+        ------
+        ValueError
+            An array does not hold ``n`` values.
+        """
+        sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
+        for view, values in zip(self._views, (position, velocity, effort)):
+            if len(values) != self.n:
+                raise ValueError(f"expected {self.n} values, got {len(values)}")
+            view[:] = values
+        struct.pack_into("<iI", self._buf, 4, sec, nanosec)
+        return bytes(self._buf)
+
+
+def encode_joint_state(stamp_ns: int, names, position, velocity, effort,
+                       frame_id: str = "") -> bytes:
+    """A ``sensor_msgs/msg/JointState`` (see :class:`JointStateEncoder`).
+
+    Parameters
+    ----------
+    stamp_ns : int
+        ``header.stamp`` [ns].
+    names : sequence of str
+    position, velocity, effort : array_like
+        One value per name.
+    frame_id : str, optional
+
+    Returns
+    -------
+    bytes
+    """
+    return JointStateEncoder(names, frame_id).encode(stamp_ns, position, velocity, effort)
 
 
 def encode_bool(value: bool) -> bytes:

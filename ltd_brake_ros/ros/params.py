@@ -15,8 +15,15 @@ from ..inputs import InputError
 from ..run_spec import RunSpec, RunSpecError, resolve_run_spec
 from ..simulator import SimulationError, Simulator
 
-__all__ = ["ParamSpec", "PARAMETERS", "StartupError", "declare_parameters",
-           "load_plant_inputs", "build_simulator", "plant_settings", "check_run_time_change"]
+__all__ = ["ParamSpec", "PARAMETERS", "CLOCK_MODES", "RESET_PARAMETERS", "StartupError",
+           "declare_parameters", "check_value", "load_plant_inputs", "build_simulator",
+           "plant_settings", "check_run_time_change"]
+
+#: Values of the ``clock`` parameter.
+#: (``off`` would be read as the boolean false on a ROS command line, hence ``none``.)
+CLOCK_MODES = ("auto", "publish", "follow", "none")
+#: Said of a parameter that a running node takes at its next reset.
+AT_RESET = "; set at run time, takes effect at the next ~/reset"
 
 
 @dataclass(frozen=True)
@@ -35,6 +42,8 @@ class ParamSpec:
         Structural: fixed once the node runs.
     lo, hi : float or None
         Accepted range (inclusive), for numbers.
+    at_reset : bool
+        Settable at run time, taken at the next ``~/reset`` (it defines the run).
     """
 
     name: str
@@ -43,13 +52,16 @@ class ParamSpec:
     read_only: bool = True
     lo: float | None = None
     hi: float | None = None
+    at_reset: bool = False
 
     def descriptor(self) -> ParameterDescriptor:
         """The ROS parameter descriptor (type, description, range, read-only flag)."""
         types = {bool: ParameterType.PARAMETER_BOOL, int: ParameterType.PARAMETER_INTEGER,
                  float: ParameterType.PARAMETER_DOUBLE, str: ParameterType.PARAMETER_STRING}
         d = ParameterDescriptor(name=self.name, type=types[type(self.default)],
-                                description=self.description, read_only=self.read_only)
+                                description=self.description + (AT_RESET if self.at_reset
+                                                                else ""),
+                                read_only=self.read_only and not self.at_reset)
         if isinstance(self.default, float) and self.lo is not None:
             d.floating_point_range = [FloatingPointRange(from_value=float(self.lo),
                                                          to_value=float(self.hi), step=0.0)]
@@ -64,14 +76,17 @@ class ParamSpec:
 PARAMETERS = (
     ParamSpec("consist", "scenario_6",
               "Consist YAML file, or a scenario of config/scenarios.yaml given as text "
-              "(scenario_6 or '6'; default: the paper's scenario 6)"),
+              "(scenario_6 or '6'; default: the paper's scenario 6)", at_reset=True),
     ParamSpec("initial_speed_kmh", -1.0,
               "Initial speed of every vehicle [km/h]; -1 = the scenario's speed "
-              "(a value is required when consist is a file)", lo=-1.0, hi=400.0),
+              "(a value is required when consist is a file)", lo=-1.0, hi=400.0,
+              at_reset=True),
     ParamSpec("brake_params_file", "",
-              "Brake-parameter YAML file; empty = the shipped brake_params/paper.yaml"),
+              "Brake-parameter YAML file; empty = the shipped brake_params/paper.yaml",
+              at_reset=True),
     ParamSpec("coupler_lut_file", "",
-              "Coupler look-up-table YAML file; empty = the shipped couplers/buffer_hook_pugi.yaml"),
+              "Coupler look-up-table YAML file; empty = the shipped couplers/buffer_hook_pugi.yaml",
+              at_reset=True),
     ParamSpec("chunk_s", 0.02,
               "Simulated time advanced and published per chunk [s]", lo=0.001, hi=10.0),
     ParamSpec("real_time_factor", 1.0,
@@ -82,23 +97,30 @@ PARAMETERS = (
               "Advance only when ~/step is called (steps_per_call chunks per call)"),
     ParamSpec("steps_per_call", 1,
               "Chunks advanced and published per ~/step call", read_only=False, lo=1, hi=100_000),
-    ParamSpec("publish_clock", True,
-              "Publish /clock after every chunk, so controllers can use use_sim_time:=true"),
+    ParamSpec("publish_every", 1,
+              "Publish (and record) the state after every N-th chunk when free-running or "
+              "following a clock, for faster runs; a ~/step's last chunk is always published",
+              lo=1, hi=100_000),
+    ParamSpec("clock", "auto",
+              "Simulated time source: auto = publish /clock unless another node already "
+              "publishes it, then follow that one; publish = publish /clock; follow = advance "
+              "to the /clock another plant publishes (one simulated time for several trains: "
+              "stepping or pausing that plant steps or pauses this one); none = neither"),
     ParamSpec("auto_brake_at_s", -1.0,
               "Apply the emergency brake by itself at the first chunk boundary at or after "
-              "this simulated time [s]; -1 = never", lo=-1.0, hi=1e6),
+              "this simulated time [s]; -1 = never", lo=-1.0, hi=1e6, at_reset=True),
     ParamSpec("max_sim_time_s", -1.0,
               "Shut down cleanly once the simulated time reaches this [s]; -1 = run until "
-              "signalled", lo=-1.0, hi=1e7),
+              "signalled", lo=-1.0, hi=1e7, at_reset=True),
     ParamSpec("shutdown_after_stop_s", -1.0,
               "Shut down cleanly this long after the train has stopped [s simulated]; "
-              "-1 = keep running", lo=-1.0, hi=1e6),
+              "-1 = keep running", lo=-1.0, hi=1e6, at_reset=True),
     ParamSpec("track_file", "",
               "Track profile (YAML or CSV: chainage -> gradient [per mille], curve radius [m]); "
-              "empty = level straight track"),
+              "empty = level straight track", at_reset=True),
     ParamSpec("start_chainage_m", 0.0,
               "Chainage of the head's front at t = 0 [m] (overrides the track file's)",
-              lo=-1e7, hi=1e7),
+              lo=-1e7, hi=1e7, at_reset=True),
     ParamSpec("record", False,
               "Record every published and received message to an MCAP bag folder"),
     ParamSpec("record_dir", "",
@@ -111,13 +133,37 @@ _TYPE_WORDS = {bool: "true or false", int: "a whole number", float: "a number wi
                "point (e.g. 80.0)", str: "text (quote numbers, e.g. consist:=scenario_6)"}
 
 
+#: Parameters a running node takes at its next reset.
+RESET_PARAMETERS = tuple(p.name for p in PARAMETERS if p.at_reset)
+
+
+def check_value(name: str, value: Any) -> str | None:
+    """Why ``value`` is not usable for parameter ``name`` beyond its type and range, or None.
+
+    Parameters
+    ----------
+    name : str
+    value : bool, int, float or str
+
+    Returns
+    -------
+    str or None
+    """
+    if name == "initial_speed_kmh" and value < 0.0 and value != -1.0:
+        return (f"must be -1 (the scenario's speed) or a speed from 0 to 400 km/h, "
+                f"got {value:g}")
+    if name == "clock" and value not in CLOCK_MODES:
+        return f"must be one of {', '.join(CLOCK_MODES)}, got {value!r}"
+    return None
+
+
 def declare_parameters(node, specs: Iterable[ParamSpec] = PARAMETERS) -> dict[str, Any]:
     """Declare ``specs`` on ``node`` and return their values.
 
     Raises
     ------
     StartupError
-        A given value has the wrong type or is out of range (naming the parameter).
+        A given value has the wrong type, is out of range or unusable (naming the parameter).
     """
     values = {}
     for spec in specs:
@@ -130,6 +176,9 @@ def declare_parameters(node, specs: Iterable[ParamSpec] = PARAMETERS) -> dict[st
         except ParameterException as exc:
             reason = str(exc).split("Reason: ", 1)[-1].removesuffix(f": {spec.name}")
             raise StartupError(spec.name, reason) from None
+        problem = check_value(spec.name, values[spec.name])
+        if problem:
+            raise StartupError(spec.name, problem)
     return values
 
 
@@ -195,9 +244,19 @@ def build_simulator(spec: RunSpec, chunk_s: float) -> Simulator:
     return sim
 
 
-def plant_settings(values: dict[str, Any]) -> PlantSettings:
-    """The plant runtime's settings from the declared parameter values."""
-    return PlantSettings(**{f.name: values[f.name] for f in fields(PlantSettings)})
+def plant_settings(values: dict[str, Any], follow_clock: bool = False) -> PlantSettings:
+    """The plant runtime's settings from the declared parameter values.
+
+    Parameters
+    ----------
+    values : dict
+        Parameter values by name.
+    follow_clock : bool, optional
+        The plant follows another plant's clock (the ``clock`` parameter, resolved).
+    """
+    return PlantSettings(follow_clock=follow_clock,
+                         **{f.name: values[f.name] for f in fields(PlantSettings)
+                            if f.name != "follow_clock"})
 
 
 def check_run_time_change(params, real_time_factor: float) -> SetParametersResult:
@@ -214,6 +273,9 @@ def check_run_time_change(params, real_time_factor: float) -> SetParametersResul
     SetParametersResult
     """
     for p in params:
+        problem = check_value(p.name, p.value) if p.name in RESET_PARAMETERS else None
+        if problem:
+            return SetParametersResult(successful=False, reason=f"{p.name} {problem}")
         if p.name == "real_time_factor":
             v = p.value
             if not (isinstance(v, float) and math.isfinite(v)

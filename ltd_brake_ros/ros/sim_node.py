@@ -6,19 +6,28 @@ real-time factor, jobs, lock-step, run policy, recorder lifecycle), wired to ROS
 are relative (``-r __ns:=/train1`` moves them); SI units; vehicle 0 is the head, coupler 1 the
 one behind it:
 
-* publishes once per chunk ``vehicles/speed`` [m/s, forward positive], ``vehicles/position``
-  [m, each vehicle's centre], ``vehicles/brake_force`` [N, retarding positive],
-  ``vehicles/traction_force`` [N, dynamic brake negative] and ``couplers/force`` [N, draft
-  positive, buff negative] (``std_msgs/Float64MultiArray``, ``layout.dim[0]`` labelled
-  ``vehicle`` or ``coupler``), and ``/clock`` when ``publish_clock``; ``/diagnostics`` about
+* publishes once per chunk (or every ``publish_every``-th) ``vehicles/speed`` [m/s, forward
+  positive], ``vehicles/position`` [m, each vehicle's centre], ``vehicles/brake_force`` [N,
+  retarding positive], ``vehicles/traction_force`` [N, dynamic brake negative] and
+  ``couplers/force`` [N, draft positive, buff negative] (``std_msgs/Float64MultiArray``,
+  ``layout.dim[0]`` labelled ``vehicle`` or ``coupler``); the same state stamped with the
+  simulated time as ``sensor_msgs/JointState`` on ``vehicles/state`` (``vehicle_<i>``: position,
+  velocity, effort = brake force) and ``couplers/state`` (``coupler_<j>``: elongation [m],
+  its rate [m/s], force); the brake model's further per-vehicle quantities on
+  ``vehicles/<quantity>``; ``/clock`` when it is the clock source; ``/diagnostics`` about
   once per wall second;
+* ``clock``: ``auto`` publishes ``/clock`` unless another node already does, then follows it;
+  ``follow`` advances to the ``/clock`` of another plant (several trains, one simulated time);
+  a second ``/clock`` publisher is warned about, naming it;
 * subscribes ``brake_command`` (``std_msgs/Bool``: emergency brake from the next chunk on,
   false releases), ``brake_demand`` (``std_msgs/Float64``, 0-1, service brake) and
   ``traction_command`` (``std_msgs/Float64``, -1 full dynamic brake to 1 full traction); a
   NaN, infinite or out-of-range value is rejected and logged;
 * records every message it publishes and receives with ``record:=true`` (rosbag2 MCAP folder);
-* serves ``~/reset`` and ``~/step`` (``std_srvs/Trigger``; a step advances ``steps_per_call``
-  chunks in lock-step mode or paused) and ``~/pause`` (``std_srvs/SetBool``).
+* serves ``~/reset`` (``std_srvs/Trigger``: the run-defining parameters set since take effect
+  then, or the reset is refused with the reason), ``~/step`` (``std_srvs/Trigger``; a step
+  advances ``steps_per_call`` chunks in lock-step mode or paused, with every command message
+  that reached the node before the request) and ``~/pause`` (``std_srvs/SetBool``).
 
 Everything the node publishes or receives passes through :meth:`SimNode._emit` or
 :meth:`SimNode._input_handled` on the plant thread, where :meth:`SimNode.add_tap` observers see
@@ -40,31 +49,35 @@ from typing import Any, Callable  # noqa: E402
 import rclpy  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from rclpy.node import Node  # noqa: E402
-from rclpy.serialization import serialize_message  # noqa: E402
+from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Bool, Float64MultiArray  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
 
-from ..plant.diagnostics import PlantStatus  # noqa: E402
+from ..plant.diagnostics import PlantStatus, format_fixed  # noqa: E402
 from ..plant.recorder import Recorder  # noqa: E402
 from ..plant.runner import PlantRunner  # noqa: E402
 from ..recording.bag import message_class, type_name  # noqa: E402
 from ..recording.metadata import run_metadata  # noqa: E402
-from ..recording.plant_topics import ARRAY_TOPICS, CLOCK_TOPIC, COMMAND_TOPICS  # noqa: E402
+from ..recording.plant_topics import (ARRAY_TOPICS, CLOCK_TOPIC, COMMAND_TOPICS,  # noqa: E402
+                                      STATE_TOPICS, StateEncoder, extra_topic)
 from ..recording.qos import qos_profiles_yaml  # noqa: E402
-from ..simulator import Snapshot  # noqa: E402
+from ..simulator import Simulator, Snapshot  # noqa: E402
 from .messages import (CLOCK_QOS, COMMAND_QOS, DIAGNOSTICS_QOS, STATE_QOS,  # noqa: E402
-                       array_msg, diagnostics_msg, time_msg)
-from .params import (PARAMETERS, StartupError, build_simulator,  # noqa: E402
-                     check_run_time_change, declare_parameters, load_plant_inputs,
-                     plant_settings)
+                       diagnostics_msg)
+from .params import (PARAMETERS, RESET_PARAMETERS, StartupError,  # noqa: E402
+                     build_simulator, check_run_time_change, declare_parameters,
+                     load_plant_inputs, plant_settings)
 
 NODE_NAME = "sim_node"
 DIAGNOSTICS_TOPIC = "/diagnostics"
 #: Input topics: message class and the plant input each one sets (the one table of
-#: :mod:`~ltd_brake_ros.recording.plant_topics`, which the published arrays come from too).
+#: :mod:`~ltd_brake_ros.recording.plant_topics`, which the published topics come from too).
 INPUT_TOPICS = {topic: (message_class(msg_type), name)
                 for topic, (msg_type, name) in COMMAND_TOPICS.items()}
+#: Wall time between two looks for other ``/clock`` publishers while publishing it [s].
+CLOCK_WATCH_PERIOD_S = 1.0
 
 Tap = Callable[[str, Any, int, bool], None]
 
@@ -98,49 +111,126 @@ class SimNode(Node):
         unknown = unknown_parameters(self, [spec.name for spec in PARAMETERS])
         if unknown:
             raise StartupError(*unknown)
+        if p["clock"] == "follow" and p["lockstep"]:
+            raise StartupError("clock", "follow cannot be combined with lockstep:=true: the "
+                               "plant publishing /clock steps this one")
+        self._params = p
+        self._run_values = {name: p[name] for name in RESET_PARAMETERS}
         self.inputs = spec = load_plant_inputs(
             p["consist"], p["initial_speed_kmh"], p["brake_params_file"], p["coupler_lut_file"],
             p["track_file"], p["start_chainage_m"])
         self.simulator = build_simulator(spec, p["chunk_s"])
         self._taps: list[Tap] = []
+        log = self.get_logger()
+        # after the kernel is loaded (a second or more): discovery has seen other nodes by now
+        self.clock_mode = self._resolve_clock(p["clock"], p["lockstep"])
         self._outputs = {topic: self.create_publisher(Float64MultiArray, topic, STATE_QOS)
                          for topic, _, _ in ARRAY_TOPICS}
-        if p["publish_clock"]:
+        self._outputs.update({topic: self.create_publisher(JointState, topic, STATE_QOS)
+                              for topic, _ in STATE_TOPICS})
+        self._add_extra_publishers(self.simulator)
+        if self.clock_mode == "publish":
             self._outputs[CLOCK_TOPIC] = self.create_publisher(Clock, CLOCK_TOPIC, CLOCK_QOS)
+            self._clock_warned: set[str] = set()
+            self.create_timer(CLOCK_WATCH_PERIOD_S, self._watch_clock)
+        elif self.clock_mode == "follow":
+            self.create_subscription(
+                Clock, CLOCK_TOPIC,
+                lambda msg: self.runner.follow(msg.clock.sec * 1_000_000_000
+                                               + msg.clock.nanosec), CLOCK_QOS)
         self._outputs[DIAGNOSTICS_TOPIC] = self.create_publisher(
             DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
         self._inputs = {name: self.create_subscription(msg_type, topic, self._receiver(name),
                                                        COMMAND_QOS)
                         for topic, (msg_type, name) in INPUT_TOPICS.items()}
+        self._encoder: StateEncoder | None = None
+        self._encoded_sim: Simulator | None = None
         recorder = None
         if p["record"]:
-            endpoints = [*self._outputs.values(), *self._inputs.values()]
             recorder = Recorder(
                 p["record_dir"] or time.strftime("runs/run_%Y%m%d-%H%M%S"),
-                [(e.topic_name, type_name(e.msg_type), qos_profiles_yaml(e.qos_profile))
-                 for e in endpoints], self.get_logger(),
-                metadata=run_metadata(self.simulator, scenario=spec.origin, parameters=dict(p),
-                                      brake_params=str(spec.params.source),
-                                      coupler_lut=str(spec.lut.source),
-                                      track=str(spec.track.source)))
+                self._recorded_topics(), log, metadata=self._metadata(spec, self.simulator, p))
             recorder.check()
         self.runner = PlantRunner(
-            self.simulator, plant_settings(p), publish_state=self._publish_state,
-            publish_status=self._publish_status, input_handled=self._input_handled,
-            log=self.get_logger(), recorder=recorder, host_ok=self.context.ok,
+            self.simulator, plant_settings(p, self.clock_mode == "follow"),
+            publish_state=self._publish_state, publish_status=self._publish_status,
+            input_handled=self._input_handled, log=log, recorder=recorder,
+            host_ok=self.context.ok,
             labels={name: sub.topic_name for name, sub in self._inputs.items()})
-        self.create_service(Trigger, "~/reset", lambda q, r: self._reply(self.runner.reset(), r))
+        self.create_service(Trigger, "~/reset", self._reset_service)
         self.create_service(SetBool, "~/pause",
                             lambda q, r: self._reply(self.runner.pause(q.data), r))
-        self.create_service(Trigger, "~/step", lambda q, r: self._reply(self.runner.step(), r))
+        self.create_service(Trigger, "~/step", self._step_service)
         self.add_on_set_parameters_callback(
             lambda params: check_run_time_change(params, self.runner.real_time_factor))
         self.add_post_set_parameters_callback(self._apply_parameters)
-        c, s = spec.consist, self.runner.settings
-        mode = "lock-step" if s.lockstep else f"real_time_factor {s.real_time_factor:g}"
+        s = self.runner.settings
+        mode = "following /clock" if s.follow_clock else "lock-step" if s.lockstep else \
+            f"real_time_factor {s.real_time_factor:g}"
+        clock = {"publish": "publishes /clock", "follow": "", "none": "no /clock"}[self.clock_mode]
+        log.info(f"{self._describe(spec)}; chunk {s.chunk_s:g} s, {mode}"
+                 + (f", {clock}" if clock else ""))
+
+    @staticmethod
+    def _describe(spec) -> str:
+        c = spec.consist
+        return (f"{c.name}: {c.n} vehicles, {c.length_m:.0f} m, {c.mass_kg / 1e3:.0f} t "
+                f"({spec.origin}) at {spec.speed_kmh:g} km/h")
+
+    def _metadata(self, spec, sim: Simulator, p: dict) -> dict:
+        return run_metadata(sim, scenario=spec.origin, parameters=dict(p),
+                            brake_params=str(spec.params.source),
+                            coupler_lut=str(spec.lut.source), track=str(spec.track.source))
+
+    def _recorded_topics(self) -> list[tuple[str, str, str]]:
+        endpoints = [*self._outputs.values(), *self._inputs.values()]
+        return [(e.topic_name, type_name(e.msg_type), qos_profiles_yaml(e.qos_profile))
+                for e in endpoints]
+
+    def _add_extra_publishers(self, sim: Simulator) -> None:
+        """Publishers of the brake model's further per-vehicle quantities of ``sim``."""
+        for key in sim.snapshot().extras:
+            topic = extra_topic(key)
+            if topic not in self._outputs:
+                self._outputs[topic] = self.create_publisher(Float64MultiArray, topic,
+                                                             STATE_QOS)
+
+    # ------------------------------------------------------------------ clock
+
+    def _other_clock_publishers(self) -> list[str]:
+        """Fully qualified names of the other nodes publishing this node's ``/clock``."""
+        me = (self.get_namespace(), self.get_name())
+        found = []
+        for info in self.get_publishers_info_by_topic(self.resolve_topic_name(CLOCK_TOPIC)):
+            if (info.node_namespace, info.node_name) != me:
+                found.append(f"{info.node_namespace.rstrip('/')}/{info.node_name}")
+        return sorted(set(found))
+
+    def _resolve_clock(self, mode: str, lockstep: bool) -> str:
+        """``publish``, ``follow`` or ``off`` for the ``clock`` parameter (``auto`` resolved)."""
+        if mode != "auto":
+            return mode
+        others = self._other_clock_publishers()
+        if not others:
+            return "publish"
+        clock = self.resolve_topic_name(CLOCK_TOPIC)
         self.get_logger().info(
-            f"{c.name}: {c.n} vehicles, {c.length_m:.0f} m, {c.mass_kg / 1e3:.0f} t "
-            f"({spec.origin}) at {spec.speed_kmh:g} km/h; chunk {s.chunk_s:g} s, {mode}")
+            f"{clock} is published by {', '.join(others)}: following it, one simulated time "
+            f"for both{' (lockstep ignored: that clock steps this train)' if lockstep else ''}; "
+            "clock:=publish would publish a second clock")
+        return "follow"
+
+    def _watch_clock(self) -> None:
+        """Warn once about each other node that publishes ``/clock`` too."""
+        new = [name for name in self._other_clock_publishers() if name not in self._clock_warned]
+        if new:
+            self._clock_warned.update(new)
+            self.get_logger().warning(
+                f"{', '.join(new)} also publish(es) {self.resolve_topic_name(CLOCK_TOPIC)}: "
+                "time jumps back and forth for every node using it; start one plant with "
+                "clock:=publish and the others with clock:=follow")
+
+    # ------------------------------------------------------------------ services, parameters
 
     def _receiver(self, name: str) -> Callable[[Any], None]:
         def receive(msg):
@@ -148,8 +238,51 @@ class SimNode(Node):
             self.runner.yield_to_plant()
         return receive
 
+    def _drain_inputs(self) -> None:
+        """Hand the plant every command message waiting in the readers (before a step)."""
+        for name, sub in self._inputs.items():
+            while True:
+                with sub.handle:
+                    taken = sub.handle.take_message(sub.msg_type, sub.raw)
+                if taken is None:
+                    break
+                self.runner.receive(name, taken[0].data, taken[0])
+
     def _reply(self, job, response):
         response.success, response.message = self.runner.result(job)
+        return response
+
+    def _step_service(self, request, response):
+        # a command published before the request is in the step: on this one thread, what
+        # waits in the readers goes to the plant ahead of the step
+        self._drain_inputs()
+        return self._reply(self.runner.step(), response)
+
+    def _reset_service(self, request, response):
+        values = {name: self.get_parameter(name).value for name in RESET_PARAMETERS}
+        if values == self._run_values:
+            return self._reply(self.runner.reset(), response)
+        p = self._params | values
+        try:
+            spec = load_plant_inputs(
+                p["consist"], p["initial_speed_kmh"], p["brake_params_file"],
+                p["coupler_lut_file"], p["track_file"], p["start_chainage_m"])
+            sim = build_simulator(spec, p["chunk_s"])
+        except StartupError as exc:
+            response.success = False
+            response.message = (f"not reset: parameter {exc.parameter}: {exc.reason}; the "
+                                "run goes on as it was")
+            self.get_logger().error(response.message)
+            return response
+        self._add_extra_publishers(sim)
+        recording = None if self.runner.recorder is None else \
+            (self._recorded_topics(), self._metadata(spec, sim, p))
+        job = self.runner.reset((sim, plant_settings(p, self.clock_mode == "follow")), recording)
+        response.success, response.message = self.runner.result(job)
+        if response.success:
+            self.inputs, self.simulator, self._params, self._run_values = spec, sim, p, values
+            self.get_logger().info(f"new run: {self._describe(spec)}")
+            response.message += f"; new run: {self._describe(spec)}"
         return response
 
     def _apply_parameters(self, params) -> None:
@@ -158,6 +291,9 @@ class SimNode(Node):
                 self.runner.set_real_time_factor(p.value)
             elif p.name == "steps_per_call":
                 self.runner.steps_per_call = p.value
+            elif p.name in RESET_PARAMETERS:
+                self.get_logger().info(f"{p.name} set to {p.value!r}: takes effect at the "
+                                       "next ~/reset")
 
     # ------------------------------------------------------------------ public API
 
@@ -196,25 +332,35 @@ class SimNode(Node):
 
     def close(self) -> None:
         """Stop the plant thread, finish the recording and destroy the node."""
-        runner = self.runner
+        runner, logger = self.runner, self.get_logger().name  # keeps the namespace
         runner.close()
         self.destroy_node()
         if runner.stats.chunks or runner.stamp_ns:
-            rclpy.logging.get_logger(NODE_NAME).info(
-                f"stopped at t = {runner.sim_time_s:.3f} s after {runner.stats.chunks} chunks")
+            rclpy.logging.get_logger(logger).info(
+                f"stopped at t = {format_fixed(runner.sim_time_s)} s after "
+                f"{runner.stats.chunks} chunks")
 
     # ------------------------------------------------------------------ the one way out and in
 
     def _emit(self, topic: str, msg: Any) -> None:
-        """Publish ``msg`` on ``topic`` (a key of ``self._outputs``), record it, show it to taps."""
+        """Publish ``msg`` (a message, or its serialized bytes) on ``topic`` (a key of
+        ``self._outputs``), record it, show it to taps."""
         publisher, runner = self._outputs[topic], self.runner
-        if runner.recorder is not None and runner.recorder.active:
+        recorder = runner.recorder
+        if isinstance(msg, bytes):
+            data = msg
+            publisher.publish(data)
+            if self._taps:
+                msg = deserialize_message(data, publisher.msg_type)
+        elif recorder is not None and recorder.active:
             # serialise once: the recording holds exactly the bytes sent
             data = serialize_message(msg)
             publisher.publish(data)
-            runner.recorder.write(publisher.topic_name, data, runner.stamp_ns)
         else:
+            data = None
             publisher.publish(msg)
+        if recorder is not None and recorder.active:
+            recorder.write(publisher.topic_name, data, runner.stamp_ns)
         for tap in self._taps:
             tap(publisher.topic_name, msg, runner.stamp_ns, False)
 
@@ -228,10 +374,14 @@ class SimNode(Node):
             tap(topic, msg, runner.stamp_ns, True)
 
     def _publish_state(self, snap: Snapshot) -> None:
-        for topic, attribute, label in ARRAY_TOPICS:
-            self._emit(topic, array_msg(label, getattr(snap, attribute)))
-        if CLOCK_TOPIC in self._outputs:
-            self._emit(CLOCK_TOPIC, Clock(clock=time_msg(self.runner.stamp_ns)))
+        sim = self.runner.sim
+        if sim is not self._encoded_sim:  # the first state of a run: its train's layout
+            self._encoded_sim = sim
+            self._encoder = StateEncoder(sim.n, sim.model.train.centre_offset_m,
+                                         extras=snap.extras,
+                                         clock=CLOCK_TOPIC in self._outputs)
+        for topic, data in self._encoder.encode(snap, self.runner.stamp_ns):
+            self._emit(topic, data)
 
     def _publish_status(self, status: PlantStatus) -> None:
         self._emit(DIAGNOSTICS_TOPIC, diagnostics_msg(

@@ -131,7 +131,7 @@ def test_lockstep_advances_exactly_the_chunks_asked_for_and_repeats_bit_for_bit(
     a, replies = lockstep_run(lambda call: 0.0)
     b, _ = lockstep_run(lambda call: 0.37 * (call % 3))  # other wall times between calls
     assert replies[0] == ("advanced 5 chunk(s) to t = 0.100 s with emergency=true "
-                          "brake_demand=0 traction=0 (inputs handled: 1)")
+                          "brake_demand=0.0 traction=0.0 (inputs handled: 1)")
     assert a.stamps_ns == b.stamps_ns == [k * CHUNK_NS for k in range(101)]
     for x, y in zip(snapshot_arrays(a.states), snapshot_arrays(b.states)):
         assert np.array_equal(x, y)

@@ -565,7 +565,8 @@ def test_simulator_failure_finishes_the_recording_and_reset_starts_a_new_one(
     folder = tmp_path / "failing"
     node = SimNode(context=ros_context, namespace="/failing", parameter_overrides=[
         Parameter("record", value=True), Parameter("record_dir", value=str(folder)),
-        Parameter("real_time_factor", value=0.0), Parameter("consist", value="scenario_7")])
+        Parameter("real_time_factor", value=0.0), Parameter("consist", value="scenario_7"),
+        Parameter("clock", value="none")])  # another test's /clock is not to be followed
     seen = []
     node.add_tap(lambda topic, msg, stamp_ns, inbound: seen.append((topic, msg)))
     probe.executor.add_node(node)

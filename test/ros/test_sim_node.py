@@ -372,37 +372,47 @@ def test_parameter_file_declares_every_parameter_with_its_default():
     from ltd_brake_ros.ros.params import PARAMETERS
 
     listed = yaml.safe_load((REPO / "config" / "sim_node.yaml").read_text())
-    values = listed["sim_node"]["ros__parameters"]
+    (key, section), = listed.items()  # sim_node, or /**/sim_node for any namespace
+    assert key.rsplit("/", 1)[-1] == "sim_node"
+    values = section["ros__parameters"]
     assert values == {p.name: p.default for p in PARAMETERS}
     for p in PARAMETERS:
         d = p.descriptor()
         assert d.description and d.type != 0, p.name
         if isinstance(p.default, (int, float)) and not isinstance(p.default, bool):
             assert d.floating_point_range or d.integer_range, f"{p.name} has no range"
-    writable = {p.name for p in PARAMETERS if not p.read_only}
-    assert writable == {"real_time_factor", "steps_per_call"}
+    writable = {p.name for p in PARAMETERS if not p.descriptor().read_only}
+    at_reset = {"consist", "initial_speed_kmh", "brake_params_file", "coupler_lut_file",
+                "track_file", "start_chainage_m", "auto_brake_at_s", "max_sim_time_s",
+                "shutdown_after_stop_s"}
+    assert writable == {"real_time_factor", "steps_per_call"} | at_reset
+    assert all("next ~/reset" in p.descriptor().description for p in PARAMETERS
+               if p.name in at_reset)
 
 
 # --------------------------------------------------------------------------- wiring (in-process)
 
 
-@pytest.mark.parametrize("publish_clock", [True, False])
-def test_topics_qos_and_services_are_wired_as_documented(ros_context, publish_clock):
+@pytest.mark.parametrize("clock", ["publish", "none"])
+def test_topics_qos_and_services_are_wired_as_documented(ros_context, clock):
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64
 
     from ltd_brake_ros.ros.sim_node import SimNode
 
     node = SimNode(context=ros_context, namespace="/wired", parameter_overrides=[
-        Parameter("lockstep", value=True), Parameter("publish_clock", value=publish_clock)])
+        Parameter("lockstep", value=True), Parameter("clock", value=clock)])
     try:
         # state topics lossless for a reader that keeps up, /clock only the newest, commands
         # deep; nothing latched
         outputs = {f"/wired/{topic}": (Float64MultiArray, 10) for topic in
                    ("vehicles/speed", "vehicles/position", "vehicles/brake_force",
                     "vehicles/traction_force", "couplers/force")}
+        outputs |= {f"/wired/{topic}": (JointState, 10) for topic in
+                    ("vehicles/state", "couplers/state")}
         outputs["/diagnostics"] = (DiagnosticArray, 10)
-        if publish_clock:
+        if clock == "publish":
             outputs["/clock"] = (Clock, 1)
         inputs = {"/wired/brake_command": Bool, "/wired/brake_demand": Float64,
                   "/wired/traction_command": Float64}
@@ -436,7 +446,8 @@ def test_simulation_error_is_reported_and_reset_recovers(ros_context, probe, mon
 
     node = SimNode(context=ros_context, namespace="/inproc",
                    parameter_overrides=[Parameter("lockstep", value=True),
-                                        Parameter("consist", value="scenario_7")])
+                                        Parameter("consist", value="scenario_7"),
+                                        Parameter("clock", value="publish")])
     seen = []
     node.add_tap(lambda topic, msg, stamp_ns, inbound: seen.append((topic, msg, inbound)))
     probe.executor.add_node(node)
