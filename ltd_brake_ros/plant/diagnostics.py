@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 from ..physics.constants import KMH_PER_MS
 from ..simulator import Commands, Simulator
+from ..verdicts import diagnostic_values
 
 #: Severity levels, numbered as in ``diagnostic_msgs/DiagnosticStatus``.
 OK, WARN, ERROR = 0, 1, 2
@@ -111,8 +112,7 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
                  overruns: int = 0, real_time_factor: float = 0.0,
                  commands: Commands = Commands(), rejected: int = 0, new_rejected: int = 0,
                  handled: int = 0, resets: int = 0, recording: str = "off",
-                 recording_error: str | None = None,
-                 verdict: tuple[int, str, dict] | None = None) -> PlantStatus:
+                 recording_error: str | None = None) -> PlantStatus:
     """The diagnostics report of the plant.
 
     Parameters
@@ -141,9 +141,6 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
         The bag folder, or ``off``, ``failed``, ``finished``.
     recording_error : str or None
         Why the recording stopped.
-    verdict : (int, str, dict) or None
-        A verdict on the run so far (level, one line, key/values added to the report), e.g.
-        on coupler strength and wheel-rail adhesion; None when no verdict is computed.
 
     Returns
     -------
@@ -187,6 +184,13 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
         "resets": str(resets),
         "recording": recording,
     }
+    # coupler strength and adhesion since the last reset: a limit exceeded is a WARN (the
+    # run goes on: the plant reports what a real train would not survive)
+    verdicts = sim.verdicts()
+    values.update(diagnostic_values(verdicts))
+    if not verdicts.passed and level == OK:
+        failed = [c.name for c in verdicts.criteria if c.passed is False]
+        level, message = WARN, f"{message}; limits exceeded: {', '.join(failed)}"
     if recording_error:
         values["recording_error"] = recording_error
         if level == OK:
@@ -194,11 +198,6 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
     if sim.stopping_distance_m is not None:
         values["stopping_distance_m"] = f3(sim.stopping_distance_m)
         values["stop_time_s"] = f3(sim.stop_time_s - (sim.command_time_s or 0.0))
-    if verdict is not None:
-        v_level, v_message, v_values = verdict
-        values.update(v_values)
-        if v_level > level:
-            level, message = v_level, v_message
     if state == "failed":
         values["error"] = reason
     return PlantStatus(level, message, values)

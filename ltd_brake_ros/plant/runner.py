@@ -42,6 +42,9 @@ REJECT_LOG_PERIOD_S = 2.0
 YIELD_LEAD_S = 0.002
 YIELD_POLL_S = 0.0005
 YIELD_MAX_S = 0.01
+#: As fast as possible, the plant thread offers the GIL to the receiving thread at least this
+#: often (wall time) [s].
+GIL_YIELD_PERIOD_S = 0.02
 #: Inputs the plant takes: the emergency brake (bool) and the numeric :data:`COMMAND_RANGES`.
 INPUTS = ("emergency", *COMMAND_RANGES)
 #: Why a following plant refuses to be stepped or paused.
@@ -159,6 +162,7 @@ class PlantRunner:
         self._next_index = 1
         self._window = PaceWindow(now)
         self._next_status_wall = 0.0
+        self._next_yield = 0.0
 
     # ------------------------------------------------------------------ any thread
 
@@ -370,10 +374,14 @@ class PlantRunner:
 
     def _paced_chunk(self, due: float) -> None:
         self._run_chunk(self._publish_due())
-        if self.real_time_factor <= 0.0:
-            self._clock.sleep(0)  # let a receiving thread take the GIL between chunks
-            return
         done = self._clock.monotonic()
+        if self.real_time_factor <= 0.0:
+            # let a receiving thread take the GIL now and then; not after every chunk: on a
+            # busy machine each yield can cost a scheduler time slice
+            if done >= self._next_yield:
+                self._next_yield = done + GIL_YIELD_PERIOD_S
+                self._clock.sleep(0)
+            return
         self.stats.lateness_s.append(done - due)
         self._next_index += 1
         if done > self._due():

@@ -13,6 +13,7 @@ from rclpy.exceptions import InvalidParameterTypeException, ParameterException
 from ..plant.settings import MAX_REAL_TIME_FACTOR, PlantSettings, StartupError
 from ..inputs import InputError
 from ..run_spec import RunSpec, RunSpecError, resolve_run_spec
+from ..physics.kernel import DEFAULT_TOLERANCE_M_S
 from ..simulator import SimulationError, Simulator
 
 __all__ = ["ParamSpec", "PARAMETERS", "CLOCK_MODES", "RESET_PARAMETERS", "StartupError",
@@ -89,6 +90,10 @@ PARAMETERS = (
               at_reset=True),
     ParamSpec("chunk_s", 0.02,
               "Simulated time advanced and published per chunk [s]", lo=0.001, hi=10.0),
+    ParamSpec("tolerance_m_s", DEFAULT_TOLERANCE_M_S,
+              "Local error allowed per integration step in each vehicle's speed [m/s]; a step "
+              "beyond it is taken in shorter sub-steps; 0 = fixed steps", lo=0.0, hi=1.0,
+              at_reset=True),
     ParamSpec("real_time_factor", 1.0,
               "Simulated seconds per wall second: 1 = wall-clock pace, 2 = twice as fast, "
               "0 = as fast as possible; not used in lock-step mode; changeable at run time",
@@ -221,10 +226,19 @@ def load_plant_inputs(consist: str, initial_speed_kmh: float, brake_params_file:
         raise StartupError(RUN_SPEC_PARAMETERS[exc.input_name], exc.detail) from None
 
 
-def build_simulator(spec: RunSpec, chunk_s: float) -> Simulator:
+def build_simulator(spec: RunSpec, chunk_s: float,
+                    tolerance_m_s: float = DEFAULT_TOLERANCE_M_S) -> Simulator:
     """The simulator of ``spec``, its compiled kernel loaded (one chunk run, then reset).
 
     Loading the kernel here keeps it from making the first chunk late.
+
+    Parameters
+    ----------
+    spec : RunSpec
+    chunk_s : float
+        Chunk the plant advances [s].
+    tolerance_m_s : float, optional
+        The integrator's local error per step in speed [m/s]; 0 = fixed steps.
 
     Raises
     ------
@@ -232,9 +246,11 @@ def build_simulator(spec: RunSpec, chunk_s: float) -> Simulator:
         The inputs do not make a train (naming ``initial_speed_kmh`` or ``consist``).
     """
     try:
-        sim = Simulator(spec.consist, spec.speed_kmh, spec.params, spec.lut, spec.track)
+        sim = Simulator(spec.consist, spec.speed_kmh, spec.params, spec.lut, spec.track,
+                        tolerance_m_s=tolerance_m_s)
     except InputError as exc:
-        name = "initial_speed_kmh" if exc.source == "speed_kmh" else "consist"
+        name = {"speed_kmh": "initial_speed_kmh", "tolerance_m_s": "tolerance_m_s"}.get(
+            str(exc.source), "consist")
         raise StartupError(name, str(exc)) from None
     try:
         sim.advance(chunk_s)

@@ -119,7 +119,7 @@ class SimNode(Node):
         self.inputs = spec = load_plant_inputs(
             p["consist"], p["initial_speed_kmh"], p["brake_params_file"], p["coupler_lut_file"],
             p["track_file"], p["start_chainage_m"])
-        self.simulator = build_simulator(spec, p["chunk_s"])
+        self.simulator = build_simulator(spec, p["chunk_s"], p["tolerance_m_s"])
         self._taps: list[Tap] = []
         log = self.get_logger()
         # after the kernel is loaded (a second or more): discovery has seen other nodes by now
@@ -267,7 +267,7 @@ class SimNode(Node):
             spec = load_plant_inputs(
                 p["consist"], p["initial_speed_kmh"], p["brake_params_file"],
                 p["coupler_lut_file"], p["track_file"], p["start_chainage_m"])
-            sim = build_simulator(spec, p["chunk_s"])
+            sim = build_simulator(spec, p["chunk_s"], p["tolerance_m_s"])
         except StartupError as exc:
             response.success = False
             response.message = (f"not reset: parameter {exc.parameter}: {exc.reason}; the "

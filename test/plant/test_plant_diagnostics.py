@@ -4,13 +4,14 @@ from __future__ import annotations
 import pytest
 
 from plant_helpers import make_plant
-from ltd_brake_ros.plant.diagnostics import OK, PaceWindow
+from ltd_brake_ros.plant.diagnostics import OK, WARN, PaceWindow
 
 KEYS = ["state", "sim_time_s", "real_time_factor", "achieved_real_time_factor", "chunks",
         "chunk_overruns", "emergency_command", "brake_command_time_s", "head_speed_kmh",
         "peak_draft_kN", "peak_draft_coupler", "peak_buff_kN", "peak_buff_coupler",
         "couplers_beyond_lut", "brake_demand", "traction_command", "rejected_inputs",
-        "inputs_handled", "resets", "recording"]
+        "inputs_handled", "resets", "recording", "verdicts", "verdict_draft_strength",
+        "verdict_buff_strength", "verdict_endurable_lcf", "verdict_adhesion"]
 
 
 def test_pace_window_measures_simulated_over_wall_time_since_the_last_report():
@@ -33,8 +34,12 @@ def test_report_after_an_emergency_stop_shows_the_stop_and_the_peak_coupler_forc
     status = plant.statuses[-1][1]
     values, sim = status.values, runner.sim
     assert list(values) == KEYS + ["stopping_distance_m", "stop_time_s"]
+    # the 50 t wagons' air brake asks more adhesion than the 0.15 a braking calculation may
+    # assume (see test/physics/test_verdicts.py): a verdict the report turns into a WARN
     assert (status.level, status.message, values["state"]) == \
-        (OK, "shutdown_after_stop_s reached", "finished")
+        (WARN, "shutdown_after_stop_s reached; limits exceeded: adhesion", "finished")
+    assert values["verdicts"] == "FAIL" and values["verdict_adhesion"].startswith("FAIL: 2 ")
+    assert values["verdict_draft_strength"] == values["verdict_buff_strength"] == "PASS"
     peaks = sim.coupler_peaks()
     # the one peak summary, in kN; a braking train pulls its couplers and pushes some
     assert (values["peak_draft_kN"], values["peak_draft_coupler"]) == \

@@ -383,6 +383,7 @@ def test_parameter_file_declares_every_parameter_with_its_default():
             assert d.floating_point_range or d.integer_range, f"{p.name} has no range"
     writable = {p.name for p in PARAMETERS if not p.descriptor().read_only}
     at_reset = {"consist", "initial_speed_kmh", "brake_params_file", "coupler_lut_file",
+                "tolerance_m_s",
                 "track_file", "start_chainage_m", "auto_brake_at_s", "max_sim_time_s",
                 "shutdown_after_stop_s"}
     assert writable == {"real_time_factor", "steps_per_call"} | at_reset

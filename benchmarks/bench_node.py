@@ -1,0 +1,173 @@
+"""Speed of sim_node as a live plant: free-running as fast as possible, and a lock-step loop.
+
+* ``real_time_factor:=0``, 20 ms chunks, scenario 6 (33 vehicles), emergency brake at t = 0:
+  simulated time / wall time with every chunk published (5 arrays, 2 stamped states,
+  ``/clock``) and with ``publish_every:=10``. The node runs in this process as ``sim_node``
+  runs it (executor in the main thread, the plant thread advancing and publishing); nothing
+  subscribes, so the figure is the node's own cost.
+* Lock-step loop from a Python client (the way ``examples/speed_controller.py`` drives the
+  plant): publish ``brake_demand``, call ``~/step`` (one 20 ms chunk), wait for the reply and
+  for the ``vehicles/state`` the step published. The node runs as its own process (the
+  installed ``sim_node``); steps per wall second over ``--steps`` steps.
+
+Usage::
+
+    ./dev.sh run python benchmarks/bench_node.py [--sim-seconds 120] [--steps 2000] [--repeat 3]
+
+Prints a Markdown table: the best of ``--repeat`` runs and the spread (best to worst).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import random
+import shutil
+import subprocess
+import sys
+import time
+
+# a private DDS domain on this machine only, so the benchmark disturbs (and hears) nobody
+os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(101, 200)))
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+
+import rclpy  # noqa: E402
+from rclpy.context import Context  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
+from rclpy.signals import SignalHandlerOptions  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from std_msgs.msg import Float64  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
+
+from ltd_brake_ros.ros.sim_node import SimNode  # noqa: E402
+
+CHUNK_S = 0.02
+
+
+def free_running(context: Context, sim_seconds: float, publish_every: int) -> float:
+    """Achieved real-time factor of an in-process node at ``real_time_factor:=0``."""
+    node = SimNode(context=context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in {
+            "chunk_s": CHUNK_S, "real_time_factor": 0.0, "auto_brake_at_s": 0.0,
+            "max_sim_time_s": sim_seconds, "publish_every": publish_every,
+            "clock": "publish"}.items()])
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    start = time.monotonic()
+    node.start()
+    runner = node.runner
+    while not runner.finished.is_set() and runner.failure is None:
+        executor.spin_once(timeout_sec=0.05)
+    elapsed = time.monotonic() - start
+    executor.remove_node(node)
+    executor.shutdown()
+    node.close()
+    if runner.failure:
+        raise SystemExit(f"the simulation failed: {runner.failure}")
+    return runner.sim_time_s / elapsed
+
+
+def sim_node_executable() -> str:
+    """The installed ``sim_node`` beside this Python."""
+    found = shutil.which("sim_node", path=os.path.dirname(sys.executable))
+    if found is None:
+        raise SystemExit("sim_node is not installed in this environment (./dev.sh setup)")
+    return found
+
+
+def lockstep_loop(context: Context, steps: int) -> float:
+    """Steps per wall second of a client driving a lock-step ``sim_node`` process."""
+    ns = f"/bench_lockstep_{os.getpid()}"
+    node = rclpy.create_node("bench_client", namespace=ns, context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    demand = node.create_publisher(Float64, "brake_demand", reliable)
+    stamps: list[int] = []
+    node.create_subscription(
+        JointState, "vehicles/state",
+        lambda m: stamps.append(m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec),
+        reliable)
+    client = node.create_client(Trigger, "sim_node/step")
+    proc = subprocess.Popen(
+        [sim_node_executable(), "--ros-args", "-r", f"__ns:={ns}", "-p", "lockstep:=true",
+         "-p", f"chunk_s:={CHUNK_S}", "-p", "clock:=none", "--log-level", "warn"])
+    try:
+        def spin_until(done, timeout_s=60.0):
+            end = time.monotonic() + timeout_s
+            while not done():
+                if time.monotonic() > end or proc.poll() is not None:
+                    raise SystemExit("the lock-step plant did not answer")
+                executor.spin_once(timeout_sec=0.01)
+
+        spin_until(lambda: client.service_is_ready() and demand.get_subscription_count() > 0)
+
+        def step(k: int) -> None:
+            demand.publish(Float64(data=(k % 100) / 100.0))
+            future = client.call_async(Trigger.Request())
+            after = round((k - 0.5) * CHUNK_S * 1e9)
+            spin_until(lambda: future.done() and stamps and stamps[-1] > after, 10.0)
+            if not future.result().success:
+                raise SystemExit(f"step refused: {future.result().message}")
+
+        # warm-up: the first reply can be lost before the plant's writer matched our reader
+        while True:
+            future = client.call_async(Trigger.Request())
+            end = time.monotonic() + 2.0
+            while not future.done() and time.monotonic() < end:
+                executor.spin_once(timeout_sec=0.01)
+            if future.done():
+                break
+            client.remove_pending_request(future)
+        spin_until(lambda: bool(stamps) and stamps[-1] > 0)
+        done = round(stamps[-1] / (CHUNK_S * 1e9))
+        for k in range(done + 1, done + 51):
+            step(k)
+        start = time.monotonic()
+        for k in range(done + 51, done + 51 + steps):
+            step(k)
+        return steps / (time.monotonic() - start)
+    finally:
+        proc.terminate()
+        proc.wait(timeout=20)
+        executor.shutdown()
+        node.destroy_node()
+
+
+def spread(values: list[float]) -> str:
+    return f"{max(values):.0f} (spread {min(values):.0f}-{max(values):.0f})"
+
+
+def main() -> None:
+    """Run the measurements and print the Markdown table."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sim-seconds", type=float, default=120.0,
+                    help="simulated time of each free-running run [s]")
+    ap.add_argument("--steps", type=int, default=2000, help="lock-step loop steps per run")
+    ap.add_argument("--repeat", type=int, default=3, help="runs of each measurement")
+    args = ap.parse_args()
+
+    context = Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    rclpy.logging.set_logger_level("sim_node", rclpy.logging.LoggingSeverity.WARN)
+    every_1, every_10, loops = [], [], []
+    for _ in range(args.repeat):
+        every_1.append(free_running(context, args.sim_seconds, 1))
+        every_10.append(free_running(context, args.sim_seconds, 10))
+        loops.append(lockstep_loop(context, args.steps))
+    rclpy.try_shutdown(context=context)
+    print(f"sim_node speed, scenario 6 (33 vehicles), chunk {CHUNK_S:g} s; best of "
+          f"{args.repeat} runs (spread); {os.cpu_count()} CPUs\n")
+    print("| measurement | result |")
+    print("|---|---:|")
+    print(f"| real_time_factor 0, every chunk published: achieved real-time factor "
+          f"| {spread(every_1)} |")
+    print(f"| real_time_factor 0, publish_every 10: achieved real-time factor "
+          f"| {spread(every_10)} |")
+    print(f"| lock-step loop (command, step one chunk, state) from a Python client: steps/s "
+          f"| {spread(loops)} |")
+
+
+if __name__ == "__main__":
+    main()
