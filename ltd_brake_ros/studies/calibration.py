@@ -1207,8 +1207,9 @@ BUFF_TOL = 0.20
 POSITION_TOL = 2
 DISTANCE_TOL = {100.0: 0.001, 50.0: 0.007}
 #: Weight of a coupler position beyond its tolerance, per coupler, in the units of the force
-#: residuals (a fraction of the force tolerance).
-POSITION_WEIGHT = 0.5
+#: residuals (force tolerances): a peak one coupler beyond its tolerance costs as much as a
+#: force three tolerances off.
+POSITION_WEIGHT = 3.0
 #: A peak force error beyond this fraction of its tolerance costs :data:`MARGIN_WEIGHT` times
 #: the excess on top: least squares alone would let one light train's small peak fall outside
 #: its tolerance for a closer fit of the others.
