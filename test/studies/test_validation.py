@@ -79,3 +79,26 @@ def test_uic_distances_within_paper_model_spread(rows):
     # Table 3
     for number in range(1, 7):
         assert -6.0 < rows[number].uic_error_percent < 1.0
+
+
+def _peak_draft_kN(job):
+    from ltd_brake_ros.inputs import consist_from_mapping
+    from ltd_brake_ros.studies.runs import emergency_stop
+
+    n, mass_t, speed = job
+    consist = consist_from_mapping({"name": "sweep", "vehicles": [
+        {"type": "E402B"}, {"type": "Shimmns", "count": n, "mass_t": mass_t}]}, "<sweep>")
+    return emergency_stop(consist, speed).peak_draft_kN
+
+
+def test_no_draft_above_500_kN_for_e402b_and_10_to_40_shimmns():
+    # the runs that snatch as the train stops (light long trains from 40-50 km/h, up to 2 MN
+    # with the Fig. 4 reconstruction) and the extremes of length, load and speed: every peak
+    # draft below 500 kN with the default inputs
+    from ltd_brake_ros.studies.parallel import map_jobs
+
+    jobs = [(n, m, v) for n in (34, 36, 38, 40) for m in (50.0, 80.0) for v in (40.0, 50.0)]
+    jobs += [(n, m, v) for n in (10, 40) for m in (50.0, 80.0) for v in (80.0, 120.0)]
+    peaks = map_jobs(_peak_draft_kN, jobs, 2)
+    worst = max(zip(peaks, jobs))
+    assert worst[0] < cal_mod.DRAFT_LIMIT_N / 1e3 == 500.0, worst
