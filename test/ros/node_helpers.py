@@ -18,6 +18,8 @@ PNG = b"\x89PNG\r\n\x1a\n"
 #: Per-chunk state topics of the node (relative), all Float64MultiArray.
 ARRAY_TOPICS = ("vehicles/speed", "vehicles/position", "vehicles/brake_force",
                 "vehicles/traction_force", "couplers/force")
+#: Per-chunk stamped state topics of the node (relative), sensor_msgs/JointState.
+STATE_TOPICS = ("vehicles/state", "couplers/state")
 
 
 def node_argv(ns: str, *params: str, ros_args: tuple[str, ...] = ()) -> list[str]:
@@ -133,6 +135,10 @@ def plain(msg):
     if hasattr(msg, "layout"):  # Float64MultiArray
         dims = [(d.label, int(d.size), int(d.stride)) for d in msg.layout.dim]
         return dims, int(msg.layout.data_offset), [float(v) for v in msg.data]
+    if hasattr(msg, "effort"):  # JointState
+        return ((int(msg.header.stamp.sec), int(msg.header.stamp.nanosec)), msg.header.frame_id,
+                list(msg.name), *([float(v) for v in getattr(msg, f)]
+                                  for f in ("position", "velocity", "effort")))
     if hasattr(msg, "clock"):
         return int(msg.clock.sec), int(msg.clock.nanosec)
     if hasattr(msg, "status"):

@@ -23,6 +23,7 @@ from rclpy.serialization import deserialize_message
 from rosbags.rosbag2 import Reader as RosbagsReader
 from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 
@@ -31,12 +32,13 @@ from ltd_brake_ros.analysis.report import analyse
 from ltd_brake_ros.inputs import get_scenario
 from ltd_brake_ros.recording.bag import bag_info
 from ltd_brake_ros.studies.runs import emergency_stop
-from node_helpers import (ARRAY_TOPICS, PNG, chunks_from_log, diagnostics_of, node_argv,
-                          plain, read_mcap)
+from node_helpers import (ARRAY_TOPICS, PNG, STATE_TOPICS, chunks_from_log, diagnostics_of,
+                          node_argv, plain, read_mcap)
 
 pytestmark = pytest.mark.ros
 
 TYPES = {**{t: "std_msgs/msg/Float64MultiArray" for t in ARRAY_TOPICS},
+         **{t: "sensor_msgs/msg/JointState" for t in STATE_TOPICS},
          "clock": "rosgraph_msgs/msg/Clock", "brake_command": "std_msgs/msg/Bool",
          "brake_demand": "std_msgs/msg/Float64", "traction_command": "std_msgs/msg/Float64"}
 #: A reader queue no run of these tests can fill: the probe keeps every message it gets.
@@ -134,9 +136,9 @@ def test_recorded_run_round_trips_through_independent_readers_and_reports_like_o
     summary, recorded = read_mcap(folder)
     assert summary is not None and summary.statistics is not None
     assert (folder / "metadata.yaml").is_file()
-    expected_topics = {f"{ns}/{t}" for t in (*ARRAY_TOPICS, "clock", "brake_command",
-                                             "brake_demand", "traction_command")} \
-        | {"/diagnostics"}
+    expected_topics = {f"{ns}/{t}" for t in (*ARRAY_TOPICS, *STATE_TOPICS, "clock",
+                                             "brake_command", "brake_demand",
+                                             "traction_command")} | {"/diagnostics"}
     assert set(recorded) == expected_topics
     channels = {c.topic: c for c in summary.channels.values()}
     assert set(channels) == expected_topics
@@ -152,7 +154,7 @@ def test_recorded_run_round_trips_through_independent_readers_and_reports_like_o
         assert times == sorted(times), f"{topic}: log times go back"
 
     # count published = count recorded: every chunk, plus the initial state
-    for topic in (*ARRAY_TOPICS, "clock"):
+    for topic in (*ARRAY_TOPICS, *STATE_TOPICS, "clock"):
         assert len(recorded[f"{ns}/{topic}"]) == chunks + 1, topic
     clock_ns = [t for t, _, _ in recorded[f"{ns}/clock"]]
     assert clock_ns == [k * 20_000_000 for k in range(chunks + 1)]
@@ -176,6 +178,7 @@ def test_recorded_run_round_trips_through_independent_readers_and_reports_like_o
 
     # --- mcap + mcap_ros2 decoding (no rclpy): values equal rclpy's own decoding
     rclpy_types = {f"{ns}/{t}": Float64MultiArray for t in ARRAY_TOPICS} | {
+        f"{ns}/{t}": JointState for t in STATE_TOPICS} | {
         f"{ns}/clock": Clock, "/diagnostics": DiagnosticArray, f"{ns}/brake_command": Bool}
     decoded = {}
     with open(next(folder.glob("*.mcap")), "rb") as f:

@@ -392,13 +392,12 @@ def test_hostile_values_and_parameters_are_rejected_while_the_plant_keeps_time(
     refused = {"real_time_factor": (math.inf, 1e9, 2, "fast"),
                "steps_per_call": (0, -3, 1.5),
                "record": (False,), "record_dir": ("/elsewhere",), "lockstep": (True,),
-               "consist": ("scenario_7",)}
+               "initial_speed_kmh": (-0.5, 401.0)}
     for name, values in refused.items():
         for value in values:
             (result,) = probe.set_parameters(node, **{name: value})
             assert not result.successful and result.reason, (name, value)
-    assert probe.get_parameters(node, *refused) == [1.0, 1, True, str(folder), False,
-                                                    "scenario_6"]
+    assert probe.get_parameters(node, *refused) == [1.0, 1, True, str(folder), False, -1.0]
 
     # a controller gone mad, for three seconds: every bad value many times, then good ones
     sender = processes.start(sys.executable, "-c", HOSTILE, ns, "3.0",
