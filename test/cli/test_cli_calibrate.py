@@ -125,7 +125,7 @@ def test_forces_target_writes_a_coupler_file(tmp_path, capsys):
 
 @pytest.mark.parametrize("argv, words", [
     (["--bounds", "v_air=250"], ["--bounds", "name=lower:upper"]),
-    (["--bounds", "v_air=50:290"], ["--bounds", "within the model's 100:340"]),
+    (["--bounds", "v_air=50:290"], ["--bounds", "within the model's 90:290"]),
     (["--fit", "k0", "--bounds", "v_air=250:290"], ["--bounds", "'v_air' is not fitted"]),
     (["--set", "t_fill"], ["--set", "name=value"]),
     (["--set", "t_fill=-1"], ["--set", "t_fill_s"]),

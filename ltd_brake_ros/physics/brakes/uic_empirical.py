@@ -90,7 +90,9 @@ class Params:
 FITTABLE = {
     "t_app": Fittable("t_app_s", "s", 0.0, 5.0, 1.0,
                       "delay from the command to the pressure rise at the venting vehicle"),
-    "v_air": Fittable("v_air_m_s", "m/s", 100.0, 340.0, 200.0,
+    # a brake pipe propagates an emergency at 90-180 m/s without acceleration chambers and
+    # 250-280 m/s with them (UIC 540); 340 m/s, sound in free air, is out of reach
+    "v_air": Fittable("v_air_m_s", "m/s", 90.0, 290.0, 200.0,
                       "propagation speed of the brake-pipe pressure drop (Eq. 6)"),
     "t_fill": Fittable("t_fill_s", "s", 2.0, 30.0, 5.0,
                        "brake-cylinder filling time, tau = t_fill / ln 20 (Eq. 7)"),
