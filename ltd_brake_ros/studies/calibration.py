@@ -1744,17 +1744,32 @@ def parameter_file_text(cal: Calibration, command: str) -> str:
                     + (f"  ({t.reference})" if len(ref) > 1 else ""))
     head += _fitted_lines(cal)
     head += _held_and_warnings(cal)
-    # every field of the model, so that the file alone reproduces the parameters
-    params = cal.params
+    return "\n".join(head + parameter_lines(cal.params)) + "\n"
+
+
+def parameter_lines(params: BrakeParams) -> list[str]:
+    """Every field of a brake-parameter set as brake-parameter YAML lines, with their meaning.
+
+    Keys and units are the file's (a field declared with ``key=``/``scale=`` is written as
+    the file reads it), so the lines alone reproduce ``params``.
+
+    Parameters
+    ----------
+    params : BrakeParams
+
+    Returns
+    -------
+    list of str
+    """
     body = [] if params.model == brakes.DEFAULT_MODEL else [f"model: {params.model}"]
-    names = [*specs(type(params.pneumatic)), *specs(type(params.friction))]
-    width = max(len(n) for n in names) + 2
-    for name in names:
-        value = getattr(params, name)
-        value = (str(value).lower() if isinstance(value, bool)
-                 else f"{float(value):.{WRITE_DIGITS}g}")
-        body.append(f"{name + ':':<{width}} {value:<10} # {_field_comment(params, name)}")
-    return "\n".join(head + body) + "\n"
+    fields = [(name, spec) for part in (params.pneumatic, params.friction)
+              for name, spec in specs(type(part)).items()]
+    width = max(len(spec.key or name) for name, spec in fields) + 2
+    for name, spec in fields:
+        value = _file_value(getattr(params, name), spec)
+        body.append(f"{(spec.key or name) + ':':<{width}} {value:<10} "
+                    f"# {_field_comment(params, name)}")
+    return body
 
 
 # --------------------------------------------------------------------------- targets

@@ -54,3 +54,13 @@ def test_a_fit_of_another_model_writes_a_file_of_that_model(tmp_path):
     loaded = load_brake_params(out)
     assert loaded.model == "linear_ramp"
     assert loaded.pneumatic == cal.params.pneumatic and loaded.friction == cal.params.friction
+
+
+@pytest.mark.parametrize("model", sorted(brakes.MODELS))
+def test_a_written_parameter_file_reads_back_the_same_parameters(model, tmp_path):
+    # every field in its file key and unit (bar, kN, ...): the file alone reproduces them
+    params = BrakeParams(model=model)
+    path = tmp_path / "p.yaml"
+    path.write_text("\n".join(cal_mod.parameter_lines(params)) + "\n")
+    back = load_brake_params(str(path))
+    assert back.pneumatic == params.pneumatic and back.friction == params.friction
