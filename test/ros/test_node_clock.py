@@ -199,3 +199,14 @@ def test_run_parameters_take_effect_at_the_next_reset_and_a_bad_run_is_refused(
     reply = probe.call(Trigger, f"{name}/step", Trigger.Request())
     assert reply.success and "t = 0.020 s" in reply.message, reply.message
     assert node.runner.sim.n == consist.n
+
+
+def test_the_last_log_line_keeps_the_namespace(ros_context, probe, capfd):
+    node = make_node(ros_context, "/last/line", "/last/line/clock", lockstep=True)
+    probe.executor.add_node(node)
+    node.start()
+    assert probe.call(Trigger, "/last/line/sim_node/step", Trigger.Request()).success
+    probe.executor.remove_node(node)
+    node.close()
+    lines = capfd.readouterr().err.strip().splitlines()
+    assert "[last.line.sim_node]: stopped at t = 0.020 s after 1 chunks" in lines[-1], lines
