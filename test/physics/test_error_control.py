@@ -132,3 +132,34 @@ def test_command_line_tolerance(capsys):
     assert main(["simulate", "--scenario", "6", "--tolerance-m-s", "-1"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "tolerance_m_s" in err and "must be between 0" in err
+
+
+@pytest.mark.parametrize("w", [0.5, 1.0, 2.0])
+def test_error_estimate_is_exact_for_a_cubic_speed_history(w):
+    # v(t) = t^3 + t: the leading error terms of BDF2 and of the predictor are its only ones,
+    # so Milne's estimate (1+w)/(2+3w) |u - q| equals the step's true local error
+    from ltd_brake_ros.physics.kernel import _error_ratio
+
+    def v(t):
+        return t ** 3 + t
+
+    def a(t):
+        return 3.0 * t ** 2 + 1.0
+
+    hs = 0.01
+    hp = hs / w
+    c1 = (1.0 + w) ** 2 / (1.0 + 2.0 * w)
+    c2 = w * w / (1.0 + 2.0 * w)
+    beta = (1.0 + w) / (1.0 + 2.0 * w)
+    u = c1 * v(0.0) - c2 * v(-hp) + beta * hs * a(hs)  # BDF2 with the exact derivative
+    error = abs(u - v(hs))
+    none = np.zeros(1, bool)
+    ratio = _error_ratio(np.array([u]), np.array([v(0.0)]), np.array([v(-hp)]),
+                         np.array([a(0.0)]), none, none, hs, hp, 1.0, 0.0, np.empty(1, bool))
+    assert ratio == pytest.approx(error, rel=1e-9)
+    # backward Euler after a restart (hp = 0) against the explicit Euler line, a quadratic
+    u = v(0.0) + hs * (2.0 * hs + 1.0)  # v(t) = t^2 + t
+    error = abs(u - (hs ** 2 + hs))
+    ratio = _error_ratio(np.array([u]), np.array([0.0]), np.array([0.0]), np.array([1.0]),
+                         none, none, hs, 0.0, 1.0, 0.0, np.empty(1, bool))
+    assert ratio == pytest.approx(error, rel=1e-9)
