@@ -210,3 +210,28 @@ def test_the_last_log_line_keeps_the_namespace(ros_context, probe, capfd):
     node.close()
     lines = capfd.readouterr().err.strip().splitlines()
     assert "[last.line.sim_node]: stopped at t = 0.020 s after 1 chunks" in lines[-1], lines
+
+
+def test_a_brake_models_further_quantities_are_published_per_vehicle(ros_context, probe,
+                                                                       nodes):
+    from pathlib import Path
+
+    pipe = Path(__file__).resolve().parents[2] / "config" / "brake_params" / \
+        "uic_brake_pipe.yaml"
+    topics = ("/ex/vehicles/brake_pipe_pressure", "/ex/vehicles/brake_cylinder_pressure")
+    for topic in topics:
+        probe.subscribe(topic, Float64MultiArray)
+    nodes(make_node(ros_context, "/ex", "/ex/clock", lockstep=True, steps_per_call=100,
+                    auto_brake_at_s=0.0, brake_params_file=str(pipe)))
+    probe.wait_matched(list(topics))
+    assert probe.call(Trigger, "/ex/sim_node/step", Trigger.Request()).success
+    got = probe.received
+    probe.spin_until(lambda: all(len(got[t]) >= 101 for t in topics), 20, "101 states")
+    pipe_pa, cylinder_pa = (np.array([m.data for m in got[t]]) for t in topics)
+    assert pipe_pa.shape == cylinder_pa.shape == (101, 33)
+    # charged to the UIC running pressure, 5 bar gauge (UIC 540), brakes released
+    np.testing.assert_allclose(pipe_pa[0], 5e5, rtol=0.01)
+    np.testing.assert_allclose(cylinder_pa[0], 0.0, atol=1e3)
+    # two seconds after the emergency command the pipe vents from the head backwards and the
+    # head's cylinder fills
+    assert pipe_pa[-1, 0] < pipe_pa[-1, 16] < 5e5 and cylinder_pa[-1, 0] > 1e5
