@@ -20,8 +20,9 @@ with these safeguards:
 * after a few iterations without convergence (rare: several vehicles and couplers crossing
   bands together), each update is shortened by an exact line search on the step's convex
   potential, which converges from anywhere;
-* a step is accepted only when every residual is below the tolerance; otherwise the kernel
-  returns a failure code and the caller raises.
+* a step is accepted only when every residual is below the Newton tolerance; otherwise it is
+  retried shorter (under error control, down to the shortest sub-step) or the kernel returns
+  a failure code and the caller raises.
 
 The brake model advances the block forces exactly over each step (:mod:`.brakes`); the friction
 law turns them into retarding forces.
