@@ -535,7 +535,7 @@ SAFETY, MAX_GROWTH, MAX_SHRINK = 0.9, 2.0, 0.2
 
 
 @jit
-def _error_ratio(u, v, vp, a, stuck, stuck0, hs, hp, tolerance, band, skip):
+def _error_ratio(u, v, vp, a, stuck, stuck0, hs, hp, tolerance):
     """Largest local error estimate of the new speeds over the tolerance (Milne's device).
 
     The predictor is the quadratic through v(t - hp) and v(t) with slope a(t) (after a
@@ -543,11 +543,10 @@ def _error_ratio(u, v, vp, a, stuck, stuck0, hs, hp, tolerance, band, skip):
     terms of variable-step BDF2, C_c = (1+w)^2 / (6 w (1+2w)) hs^3 v''', and of that
     predictor, C_p = (1+w) / (6 w) hs^3 v''' (w = hs / hp), the corrector's error is
     C_c / (C_c + C_p) = (1+w) / (2+3w) of their difference; 1/2 for backward Euler against
-    the explicit Euler line. Left out are vehicles inside, entering or leaving the standstill
-    band, and the two vehicles of a coupler whose deflection speed ends or started the step
-    inside Eq. 3's band (|rate| <= ``band``) or crossed it: there the force switches between
-    the loading and unloading curves, a kink the Newton safeguards resolve and no polynomial
-    predictor follows (``skip`` is scratch).
+    the explicit Euler line. Vehicles inside, entering or leaving the standstill band are left
+    out: the friction's kink there is resolved by the band, not by the step. A coupler crossing
+    Eq. 3's band is not: its switch between the loading and unloading curves changes the
+    forces by as much as an end stop, and short steps resolve it.
     """
     if hp > 0.0:
         w = hs / hp
@@ -557,17 +556,8 @@ def _error_ratio(u, v, vp, a, stuck, stuck0, hs, hp, tolerance, band, skip):
         k = 0.5
         cq = 0.0
     worst = 0.0
-    n = u.shape[0]
-    for i in range(n):
-        skip[i] = stuck[i] or stuck0[i]
-    for j in range(n - 1):
-        r0 = v[j] - v[j + 1]
-        r1 = u[j] - u[j + 1]
-        if r0 * r1 <= 0.0 or min(abs(r0), abs(r1)) <= band:
-            skip[j] = True
-            skip[j + 1] = True
-    for i in range(n):
-        if skip[i]:
+    for i in range(u.shape[0]):
+        if stuck[i] or stuck0[i]:
             continue
         q = v[i] + a[i] * hs
         if cq > 0.0:
@@ -660,7 +650,6 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
     vhat = np.empty(n)
     stuck0 = np.empty(n, np.bool_)
     stuck1 = np.empty(n, np.bool_)
-    skip = np.empty(n, np.bool_)
     fa_scale = np.empty(n)
     tol = np.empty(n)
     res_a = np.empty((n, 3))
@@ -747,8 +736,7 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
             ratio = 0.0
             order = 2.0 if hp > 0.0 else 1.0
             if adaptive and not reject and control[ACCEL_VALID] > 0.0:
-                ratio = _error_ratio(u, v, vp, acc, stuck1, stuck0, hs, hp, tolerance, band,
-                                     skip)
+                ratio = _error_ratio(u, v, vp, acc, stuck1, stuck0, hs, hp, tolerance)
                 reject = ratio > 1.0 and hs > h_min
             if reject:
                 # undo the step's changes to the state and retry shorter

@@ -155,11 +155,11 @@ def test_error_estimate_is_exact_for_a_cubic_speed_history(w):
     error = abs(u - v(hs))
     none = np.zeros(1, bool)
     ratio = _error_ratio(np.array([u]), np.array([v(0.0)]), np.array([v(-hp)]),
-                         np.array([a(0.0)]), none, none, hs, hp, 1.0, 0.0, np.empty(1, bool))
+                         np.array([a(0.0)]), none, none, hs, hp, 1.0)
     assert ratio == pytest.approx(error, rel=1e-9)
     # backward Euler after a restart (hp = 0) against the explicit Euler line, a quadratic
     u = v(0.0) + hs * (2.0 * hs + 1.0)  # v(t) = t^2 + t
     error = abs(u - (hs ** 2 + hs))
     ratio = _error_ratio(np.array([u]), np.array([0.0]), np.array([0.0]), np.array([1.0]),
-                         none, none, hs, 0.0, 1.0, 0.0, np.empty(1, bool))
+                         none, none, hs, 0.0, 1.0)
     assert ratio == pytest.approx(error, rel=1e-9)
