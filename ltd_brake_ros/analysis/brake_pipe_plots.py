@@ -14,7 +14,7 @@ import numpy as np
 
 from ..recording.output import checked_output
 
-__all__ = ["pipe_figure", "write_brake_pipe_plot"]
+__all__ = ["pipe_figure", "profiles_figure", "write_brake_pipe_plot"]
 
 BAR = 1e5
 
@@ -48,27 +48,56 @@ def pipe_figure(time_s, distance_m, pipe_Pa, cylinder_Pa, *,
     Returns
     -------
     matplotlib.figure.Figure
+        As :func:`profiles_figure`.
+    """
+    t = np.asarray(time_s, float)
+    p = np.asarray(pipe_Pa, float)
+    c = np.asarray(cylinder_Pa, float)
+    k = _instants(t, instants_s, 6)
+    n = c.shape[1]
+    return profiles_figure(distance_m, t[k], p[k], t, {i % n: c[:, i % n] for i in vehicles},
+                           title=title)
+
+
+def profiles_figure(distance_m, profile_time_s, profile_Pa, time_s, cylinder_Pa: dict, *,
+                    title: str = ""):
+    """Figure of pipe-pressure profiles along the train and cylinder pressures in time.
+
+    The reduced form of :func:`pipe_figure`: only the profiles and the cylinder series drawn.
+
+    Parameters
+    ----------
+    distance_m : array_like, shape (n,)
+        Each vehicle's distance from the head [m].
+    profile_time_s : array_like, shape (k,)
+        Time of each profile [s].
+    profile_Pa : array_like, shape (k, n)
+        Gauge brake-pipe pressure of every vehicle at those times [Pa].
+    time_s : array_like, shape (m,)
+        Sample times of the cylinder pressures [s].
+    cylinder_Pa : dict of int to array_like, shape (m,)
+        Gauge brake-cylinder pressure [Pa] of each vehicle drawn (key: vehicle index, 0 = head).
+    title : str, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
         Left: pipe pressure [bar] against distance at each instant; right: cylinder
         pressures [bar] against time.
     """
     from matplotlib.figure import Figure
 
-    t = np.asarray(time_s, float)
     x = np.asarray(distance_m, float)
-    p = np.asarray(pipe_Pa, float) / BAR
-    c = np.asarray(cylinder_Pa, float) / BAR
     fig = Figure(figsize=(11, 4.2))
     left, right = fig.subplots(1, 2)
-    for k in _instants(t, instants_s, 6):
-        left.plot(x, p[k], marker=".", ms=3, lw=1, label=f"{t[k]:.1f} s")
+    for tk, pk in zip(np.asarray(profile_time_s, float), np.asarray(profile_Pa, float)):
+        left.plot(x, pk / BAR, marker=".", ms=3, lw=1, label=f"{tk:.1f} s")
     left.set_xlabel("distance along the train [m]")
     left.set_ylabel("brake-pipe pressure [bar, gauge]")
     left.legend(fontsize=8, title="time")
     left.grid(alpha=0.3)
-    n = c.shape[1]
-    for i in vehicles:
-        j = i % n
-        right.plot(t, c[:, j], lw=1.2, label=f"vehicle {j}")
+    for j, c in cylinder_Pa.items():
+        right.plot(time_s, np.asarray(c, float) / BAR, lw=1.2, label=f"vehicle {j}")
     right.set_xlabel("time [s]")
     right.set_ylabel("brake-cylinder pressure [bar, gauge]")
     right.legend(fontsize=8)

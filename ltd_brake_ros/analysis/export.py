@@ -20,17 +20,21 @@ FILES = {"vehicles/speed": "speed_m_s.csv", "vehicles/position": "position_m.csv
          "vehicles/brake_force": "brake_force_N.csv",
          "vehicles/traction_force": "traction_force_N.csv",
          "couplers/force": "coupler_force_N.csv", BRAKE_COMMAND: "brake_command.csv",
-         "coupler_peaks": "coupler_peaks.csv"}
+         "coupler_peaks": "coupler_peaks.csv",
+         "vehicles/brake_pipe_pressure": "brake_pipe_pressure_Pa.csv",
+         "vehicles/brake_cylinder_pressure": "brake_cylinder_pressure_Pa.csv"}
 
 
 def write_csv(report: RunReport, outdir) -> list[Path]:
     """Export the recorded arrays and the per-coupler peaks as CSV (SI units).
 
     One file per array topic (``speed_m_s.csv``, ``position_m.csv``, ``brake_force_N.csv``,
-    ``traction_force_N.csv``, ``coupler_force_N.csv``: a ``time_s`` column, then one column
-    per vehicle ``vehicle_0`` (head) ... or coupler ``coupler_1`` (behind the head) ...),
-    ``brake_command.csv`` and ``coupler_peaks.csv``. The recording is streamed again, with the
-    report's checks (:mod:`.samples`): every sample is written, or none of the files.
+    ``traction_force_N.csv``, ``coupler_force_N.csv``; with a brake pipe also
+    ``brake_pipe_pressure_Pa.csv`` and ``brake_cylinder_pressure_Pa.csv``, gauge: a ``time_s``
+    column, then one column per vehicle ``vehicle_0`` (head) ... or coupler ``coupler_1``
+    (behind the head) ...), ``brake_command.csv`` and ``coupler_peaks.csv``. The recording is
+    streamed again, with the report's checks (:mod:`.samples`): every sample is written, or
+    none of the files.
 
     Parameters
     ----------

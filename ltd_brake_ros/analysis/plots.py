@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..recording.output import checked_output
+from .brake_pipe_plots import profiles_figure
 
 if TYPE_CHECKING:
     from .report import RunReport
@@ -20,7 +21,9 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
     ``speed.png`` (head and tail speed), ``brake_force.png`` (first wagon and tail, as the
     paper's Fig. 7), ``coupler_peaks.png`` (peak draft and buff per coupler, Fig. 6, with the
     verdicts' strength limits where the peaks come within half of them) and
-    ``coupler_force_map.png`` (coupler x time, diverging colours centred at zero, draft red).
+    ``coupler_force_map.png`` (coupler x time, diverging colours centred at zero, draft red)
+    and, when a brake pipe was recorded, ``brake_pipe.png`` (pipe pressure along the train at
+    the kept instants, cylinder pressure of the head wagon and the tail in time).
 
     Parameters
     ----------
@@ -120,6 +123,13 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
     ax.set_ylabel("coupler (1 = behind the head)")
     ax.set_title(f"Coupler force {title}".strip())
     save(fig, "coupler_force_map.png")
+    if report.has_brake_pipe:
+        cylinders = {} if not report.cylinder_time_s.size else {
+            report.head_wagon_index: report.head_wagon_cylinder_Pa,
+            max(report.n_vehicles - 1, 0): report.tail_cylinder_Pa}
+        save(profiles_figure(report.pipe_distance_m, report.pipe_profile_time_s,
+                             report.pipe_profile_Pa, report.cylinder_time_s, cylinders,
+                             title=f"Brake pipe {title}".strip()), "brake_pipe.png")
     report.plots = paths
     return paths
 

@@ -14,6 +14,9 @@ Topics used (any namespace; the first one holding ``vehicles/speed`` is analysed
 ``<ns>/couplers/force``         coupler force, coupler 1 behind the head; draft (tension)
                                 positive, buff (compression) negative [N]
 ``<ns>/brake_command``          emergency brake command (std_msgs/Bool)
+``<ns>/vehicles/brake_pipe_``   gauge brake-pipe and brake-cylinder pressure of each vehicle
+``pressure``, ``<ns>/vehicles/  [Pa], published by a brake model with a pipe (optional)
+brake_cylinder_pressure``
 ==============================  ===========================================================
 
 Definitions: the emergency command is the first ``brake_command`` that is true (its record
@@ -34,9 +37,17 @@ standard defaults and adhesion is not assessed (the vehicle masses are unknown).
 demand is the largest recorded brake force / weight of each vehicle: sampled at the recorded
 instants, it can fall short of the simulator's, which also takes it as the wheels come to rest.
 
+The brake pipe, when recorded: pipe-pressure profiles along the train at
+:data:`PIPE_PROFILE_OFFSETS_S` after the emergency command (after the start without one) and
+at the end; the cylinder pressure of the head wagon and the tail over time; the pressures at
+the end, and the time from the command until each of those cylinders first reached 95 % of its
+final pressure (interpolated between samples; only for a cylinder that holds at least
+:data:`APPLIED_PA` at the end).
+
 The file is streamed: time series of the head and tail (a few numbers per sample) are kept,
 the coupler heat map is reduced on the fly to at most a few thousand time bins (each holding
-the force of largest magnitude in it, sign kept), and the CSV export re-reads the file.
+the force of largest magnitude in it, sign kept), the pipe to the few profiles above, and the
+CSV export re-reads the file.
 """
 from __future__ import annotations
 
@@ -55,6 +66,16 @@ from .samples import BRAKE_COMMAND, plant_samples
 __all__ = ["RunReport", "analyse"]
 
 _HEAT_BINS = 1500
+#: Times of the pipe-pressure profiles kept, after the emergency command (or the start) [s]:
+#: the emergency wave crosses a 1 000 m train in about 4 s (250-280 m/s) and G cylinders fill
+#: in 18-30 s (UIC 540); the last recorded profile is kept as well.
+PIPE_PROFILE_OFFSETS_S = (0.0, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
+#: Cylinder pressure below which a cylinder counts as released, for the 95 % filling time
+#: [Pa, gauge]: a tenth of the pressure of a first service step (about 1 bar, UIC 540).
+APPLIED_PA = 0.1e5
+#: Share of the final cylinder pressure whose first reaching is reported (UIC 540's filling
+#: time is measured to 95 %).
+FILLED = 0.95
 _SIGN = ("coupler force: draft (tension) positive, buff (compression) negative; "
          "coupler 1 is behind the head")
 
@@ -182,6 +203,23 @@ class RunReport:
         Vehicle index (0 = head) of the "head wagon" plotted.
     heat_t0_s, heat_t1_s, heat_force_N : ndarray
         Coupler-force heat map: time span of each bin, and (bins x couplers) forces.
+    pipe_distance_m : ndarray
+        Each vehicle's distance behind the head at the first recorded position [m] (vehicle
+        index when no positions were recorded); empty without a recorded brake pipe.
+    pipe_profile_time_s, pipe_profile_Pa : ndarray
+        Times of the kept pipe-pressure profiles [s] and (profiles x vehicles) gauge pressure
+        [Pa] (see the module notes).
+    cylinder_time_s, head_wagon_cylinder_Pa, tail_cylinder_Pa : ndarray
+        Gauge cylinder pressure of the head wagon and the tail over time [Pa].
+    pipe_reference_time_s : float or None
+        Time the profiles and filling times count from: the command, else the first sample.
+    head_pipe_end_Pa, tail_pipe_end_Pa : float or None
+        Gauge pipe pressure at the head and the tail in the last sample [Pa].
+    head_wagon_cylinder_end_Pa, tail_cylinder_end_Pa : float or None
+        Gauge cylinder pressure in the last sample [Pa].
+    head_wagon_fill_time_s, tail_fill_time_s : float or None
+        From ``pipe_reference_time_s`` until the cylinder first reached 95 % of its final
+        pressure [s] (None: released at the end, or never reached after the reference).
     limits : TrainLimits or None
         The limits the verdicts judge by.
     verdicts : Verdicts or None
@@ -222,9 +260,27 @@ class RunReport:
     heat_t0_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     heat_t1_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     heat_force_N: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    pipe_distance_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    pipe_profile_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    pipe_profile_Pa: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    cylinder_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    head_wagon_cylinder_Pa: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    tail_cylinder_Pa: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    pipe_reference_time_s: float | None = None
+    head_pipe_end_Pa: float | None = None
+    tail_pipe_end_Pa: float | None = None
+    head_wagon_cylinder_end_Pa: float | None = None
+    tail_cylinder_end_Pa: float | None = None
+    head_wagon_fill_time_s: float | None = None
+    tail_fill_time_s: float | None = None
     limits: TrainLimits | None = None
     verdicts: Verdicts | None = None
     plots: list = field(default_factory=list)
+
+    @property
+    def has_brake_pipe(self) -> bool:
+        """A brake pipe was recorded (its profiles and cylinder pressures are here)."""
+        return bool(self.pipe_profile_Pa.size)
 
     def as_dict(self) -> dict:
         """Scalars, consist summary and per-coupler peaks, JSON-serialisable."""
@@ -243,6 +299,11 @@ class RunReport:
             "peak_buff_N": self.coupler_peak_buff_N.tolist(),
             "peak_buff_time_s": self.coupler_peak_buff_time_s.tolist()}
         out["verdicts"] = None if self.verdicts is None else self.verdicts.as_dict()
+        out["brake_pipe"] = None if not self.has_brake_pipe else {
+            k: getattr(self, k) for k in (
+                "pipe_reference_time_s", "head_pipe_end_Pa", "tail_pipe_end_Pa",
+                "head_wagon_cylinder_end_Pa", "tail_cylinder_end_Pa", "head_wagon_fill_time_s",
+                "tail_fill_time_s", "head_wagon_index")}
         out["sign_convention"] = _SIGN
         out["plots"] = [str(p) for p in self.plots]
         return out
@@ -288,12 +349,31 @@ class RunReport:
             lines.append(f"Peak buff: {self.peak_buff_kN:.1f} kN at coupler "
                          f"{self.peak_buff_coupler} (t = {self.peak_buff_time_s:.2f} s)")
             lines.append(f"Sign convention: {_SIGN}")
+        if self.has_brake_pipe:
+            lines += self._describe_pipe()
         if self.verdicts is not None:
             lines.append(f"Verdicts: {'PASS' if self.verdicts.passed else 'FAIL'}")
             lines += [f"  {line}" for line in self.verdicts.describe()]
         for p in self.plots:
             lines.append(f"Plot: {p}")
         return "\n".join(lines)
+
+    def _describe_pipe(self) -> list[str]:
+        """The brake-pipe summary lines (pressures in bar, gauge)."""
+        since = "the command" if self.command_time_s is not None else "the start"
+        tail = max(self.n_vehicles - 1, 0)
+        lines = [f"Brake pipe at the end (t = {self.end_time_s:.2f} s): "
+                 f"{self.head_pipe_end_Pa / 1e5:.2f} bar at the head, "
+                 f"{self.tail_pipe_end_Pa / 1e5:.2f} bar at the tail (gauge)"]
+        for name, j, end, fill in (
+                ("head wagon", self.head_wagon_index, self.head_wagon_cylinder_end_Pa,
+                 self.head_wagon_fill_time_s),
+                ("tail", tail, self.tail_cylinder_end_Pa, self.tail_fill_time_s)):
+            text = f"Brake cylinder, {name} (vehicle {j}): {end / 1e5:.2f} bar at the end"
+            if fill is not None:
+                text += f"; 95 % of it {fill:.2f} s after {since}"
+            lines.append(text)
+        return lines
 
 
 def _number(value) -> float | None:
@@ -354,6 +434,8 @@ def analyse(path, namespace: str | None = None) -> RunReport:
     command_t = None
     n_vehicles = 0
     head_wagon = None
+    first_position = None
+    pipe = _Pipe(info.start_ns * 1e-9)
     for name, t, _log_ns, value in plant_samples(path, ns):
         if name == "vehicles/speed":
             n_vehicles = value.size
@@ -363,6 +445,8 @@ def analyse(path, namespace: str | None = None) -> RunReport:
             watch.speed = value
         elif name == "vehicles/position":
             pos.add(t, value[0])
+            if first_position is None:
+                first_position = value
         elif name == "vehicles/brake_force":
             if head_wagon is None:
                 head_wagon = 1 if value.size > 1 else 0
@@ -388,6 +472,11 @@ def analyse(path, namespace: str | None = None) -> RunReport:
                 watch.couplers(t, value)
         elif name == BRAKE_COMMAND and command_t is None and value:
             command_t = t
+            pipe.restart(t)
+        elif name == "vehicles/brake_pipe_pressure":
+            pipe.pipe(t, value)
+        elif name == "vehicles/brake_cylinder_pressure":
+            pipe.cylinder(t, value)
     if not len(speed):
         raise BagError(path, f"{ns}/vehicles/speed", "no samples recorded: nothing to analyse")
     vehicles = info.metadata.get("consist", {}).get("vehicles") \
@@ -431,6 +520,7 @@ def analyse(path, namespace: str | None = None) -> RunReport:
         rep.peak_buff_kN, rep.peak_buff_coupler = peaks.buff_N / 1e3, peaks.buff_coupler
         rep.peak_buff_time_s = peaks.buff_time_s
         rep.heat_t0_s, rep.heat_t1_s, rep.heat_force_N = heat.result()
+    pipe.result(rep, first_position)
     if watch is not None and watch.fits(n_vehicles, rep.n_couplers):
         head = speed.np("head")
 
@@ -446,6 +536,89 @@ def analyse(path, namespace: str | None = None) -> RunReport:
             adhesion_demand=watch.adhesion, adhesion_time_s=watch.adhesion_time_s,
             adhesion_speed_kmh=watch.adhesion_speed_kmh, first_time_s=watch.first_time_s)
     return rep
+
+
+class _Pipe:
+    """The brake pipe while the recording streams: a few profiles, two cylinders in time.
+
+    Parameters
+    ----------
+    start_s : float
+        Time the profiles count from until an emergency command is seen [s].
+    """
+
+    def __init__(self, start_s: float):
+        self.reference_s = start_s
+        self.profiles: dict = {}  # offset index -> (time [s], pressures [Pa])
+        self.last = None
+        self.ends = _Series("t", "head", "tail")
+        self.cylinders = _Series("t", "head_wagon", "tail")
+
+    def restart(self, t: float) -> None:
+        """Count the profiles from the emergency command at ``t`` [s] (the pipe before it is
+        charged, so nothing is lost by dropping the profiles kept but one of that instant)."""
+        self.reference_s = t
+        self.profiles.clear()
+        if self.last is not None and self.last[0] >= t - 1e-9:
+            self.profiles[0] = self.last
+
+    def pipe(self, t: float, value: np.ndarray) -> None:
+        for i, offset in enumerate(PIPE_PROFILE_OFFSETS_S):
+            if i not in self.profiles and t >= self.reference_s + offset - 1e-9:
+                self.profiles[i] = (t, value)
+        self.last = (t, value)
+        self.ends.add(t, value[0], value[-1])
+
+    def cylinder(self, t: float, value: np.ndarray) -> None:
+        # the head wagon as for the brake force: the first vehicle behind the head
+        self.cylinders.add(t, value[1 if value.size > 1 else 0], value[-1])
+
+    def result(self, rep: RunReport, first_position) -> None:
+        """Put what was kept into ``rep`` (nothing without a recorded pipe)."""
+        if self.last is None:
+            return
+        kept = sorted(self.profiles.values(), key=lambda p: p[0])
+        if not kept or kept[-1][0] < self.last[0]:
+            kept.append(self.last)
+        n = self.last[1].size
+        rep.pipe_distance_m = (first_position[0] - first_position) if first_position is not None \
+            else np.arange(n, dtype=float)
+        rep.pipe_profile_time_s = np.array([t for t, _ in kept])
+        rep.pipe_profile_Pa = np.array([p for _, p in kept])
+        rep.pipe_reference_time_s = self.reference_s
+        rep.head_pipe_end_Pa = float(self.ends.np("head")[-1])
+        rep.tail_pipe_end_Pa = float(self.ends.np("tail")[-1])
+        if not len(self.cylinders):
+            return
+        t = self.cylinders.np("t")
+        rep.cylinder_time_s = t
+        rep.head_wagon_cylinder_Pa = self.cylinders.np("head_wagon")
+        rep.tail_cylinder_Pa = self.cylinders.np("tail")
+        rep.head_wagon_cylinder_end_Pa = float(rep.head_wagon_cylinder_Pa[-1])
+        rep.tail_cylinder_end_Pa = float(rep.tail_cylinder_Pa[-1])
+        rep.head_wagon_fill_time_s = _fill_time(t, rep.head_wagon_cylinder_Pa, self.reference_s)
+        rep.tail_fill_time_s = _fill_time(t, rep.tail_cylinder_Pa, self.reference_s)
+
+
+def _fill_time(t: np.ndarray, p: np.ndarray, reference_s: float) -> float | None:
+    """Time from ``reference_s`` until ``p`` first reached :data:`FILLED` of its last value
+    [s], linear between samples; None if released at the end or never reached after it."""
+    final = float(p[-1])
+    if final < APPLIED_PA:
+        return None
+    after = np.flatnonzero(t >= reference_s - 1e-9)
+    if not after.size:
+        return None
+    first = after[0]
+    target = FILLED * final
+    hit = np.flatnonzero(p[first:] >= target)
+    if not hit.size:
+        return None
+    k = first + int(hit[0])
+    if k == first:
+        return float(t[k] - reference_s)
+    t0, t1, p0, p1 = t[k - 1], t[k], p[k - 1], p[k]
+    return float(t0 + (target - p0) / (p1 - p0) * (t1 - t0) - reference_s)
 
 
 class _Watch:

@@ -23,7 +23,9 @@ BOOL = "std_msgs/msg/Bool"
 #: Array topics under the plant's namespace: name -> element ("vehicle" or "coupler").
 ARRAYS = {"vehicles/speed": "vehicle", "vehicles/position": "vehicle",
           "vehicles/brake_force": "vehicle", "vehicles/traction_force": "vehicle",
-          "couplers/force": "coupler"}
+          "couplers/force": "coupler",
+          # gauge pressures of a brake model that has a pipe [Pa]; absent otherwise
+          "vehicles/brake_pipe_pressure": "vehicle", "vehicles/brake_cylinder_pressure": "vehicle"}
 #: The emergency command topic under the plant's namespace.
 BRAKE_COMMAND = "brake_command"
 

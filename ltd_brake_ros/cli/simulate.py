@@ -24,6 +24,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="command script (t_s -> traction -1..1, brake_demand 0..1, emergency); "
                         "without it the emergency brake is applied at t = 0")
     p.add_argument("--json", action="store_true", help="print one JSON object (units in the keys)")
+    p.add_argument("--record", metavar="DIR",
+                   help="record the run into DIR (a new rosbag2/MCAP folder) with the topics of "
+                        f"a sim_node recording, a state every {RECORD_CHUNK_S:g} s (the "
+                        "emergency stop is then advanced in chunks of that length); "
+                        "ltd-brake report DIR analyses it")
     p.set_defaults(func=run)
     return p
 
@@ -31,6 +36,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 #: Simulated time per chunk of an emergency stop [s], and when to give up if the train has not
 #: stopped [s] (as :func:`~ltd_brake_ros.studies.runs.emergency_stop`).
 CHUNK_S, MAX_TIME_S = 1.0, 600.0
+#: Simulated time between recorded states with ``--record`` [s]: the command-update interval
+#: of a script run, so a recorded script run is the run without the recording.
+RECORD_CHUNK_S = 0.1
 
 
 def run(args: argparse.Namespace) -> int:
@@ -51,13 +59,14 @@ def run(args: argparse.Namespace) -> int:
     events = []
     # the emergency stop as a one-command script, so that the simulator (and its verdicts)
     # outlives the run; the chunks are those of emergency_stop, and so are the results
+    script = CommandScript(((0.0, {"emergency": True}),))
     start = time.perf_counter()
-    with _Progress() as progress:
-        sim = scripted_run(spec.consist, spec.speed_kmh,
-                           CommandScript(((0.0, {"emergency": True}),)), params, lut,
+    with _Progress() as progress, _Recording(args, spec, script) as rec:
+        sim = scripted_run(spec.consist, spec.speed_kmh, script, params, lut,
                            spec.track, step_s=args.step_s, tolerance_m_s=tolerance(args),
-                           chunk_s=CHUNK_S, max_time_s=MAX_TIME_S,
-                           on_chunk=lambda s: events.extend(s.events), progress=progress)
+                           chunk_s=rec.chunk_s(CHUNK_S), max_time_s=MAX_TIME_S,
+                           on_chunk=rec.after(lambda s: events.extend(s.events)),
+                           progress=progress)
     if sim.stop_time_s is None:
         raise SimulationError(f"the train had not stopped after {MAX_TIME_S:g} s")
     res = summarize(sim, time.perf_counter() - start)
@@ -118,10 +127,12 @@ def _run_script(args: argparse.Namespace, spec) -> int:
     events = []
 
     start = time.perf_counter()
-    with _Progress() as progress:
+    with _Progress() as progress, _Recording(args, spec, script) as rec:
         sim = scripted_run(spec.consist, spec.speed_kmh, script, spec.params, spec.lut,
                            spec.track, step_s=args.step_s, tolerance_m_s=tolerance(args),
-                           on_chunk=lambda s: events.extend(s.events), progress=progress)
+                           chunk_s=rec.chunk_s(RECORD_CHUNK_S),
+                           on_chunk=rec.after(lambda s: events.extend(s.events)),
+                           progress=progress)
     wall = time.perf_counter() - start
     snap = sim.snapshot()
     peaks = sim.coupler_peaks()
@@ -205,3 +216,100 @@ class _Progress:
         if self._shown:
             self._stream.write("\r\033[K")
             self._stream.flush()
+
+
+class _Recording:
+    """The ``--record`` folder of a run: the states, ``/clock`` and the script's commands.
+
+    Written as ``sim_node`` records a run (:func:`~ltd_brake_ros.recording.plant_topics.plant_topics`
+    in the root namespace, :class:`~ltd_brake_ros.recording.plant_topics.StateEncoder`, so a
+    brake model's extras such as the brake-pipe pressures are recorded too), with the run
+    information of :func:`~ltd_brake_ros.recording.metadata.run_metadata`. Each command is
+    recorded at the chunk boundary where :func:`~ltd_brake_ros.studies.runs.scripted_run`
+    applies it. Without ``--record`` it does nothing.
+    """
+
+    def __init__(self, args: argparse.Namespace, spec, script):
+        self._folder = getattr(args, "record", None)
+        self._args, self._spec, self._script = args, spec, script
+        self._rec = self._encoder = None
+        self._next = 0  # first script step not recorded yet
+
+    def chunk_s(self, default_s: float) -> float:
+        """Chunk length of the run [s]: :data:`RECORD_CHUNK_S` when recording."""
+        return RECORD_CHUNK_S if self._folder else default_s
+
+    def after(self, on_chunk):
+        """``on_chunk`` that records the chunk's state first."""
+        if not self._folder:
+            return on_chunk
+
+        def both(snap):
+            self._state(snap)
+            on_chunk(snap)
+        return both
+
+    def __enter__(self) -> "_Recording":
+        if not self._folder:
+            return self
+        import logging
+
+        from ..plant.recorder import Recorder
+        from ..plant.settings import StartupError
+        from ..recording.metadata import run_metadata
+        from ..recording.plant_topics import StateEncoder, plant_topics
+        from ..simulator import Simulator
+
+        spec = self._spec
+        # the run's simulator before its first chunk: the train layout, extras and t = 0 state
+        sim = Simulator(spec.consist, spec.speed_kmh, spec.params, spec.lut, spec.track,
+                        step_s=self._args.step_s, tolerance_m_s=tolerance(self._args))
+        snap = sim.snapshot()
+        extras = tuple(snap.extras)
+        self._encoder = StateEncoder(sim.n, sim.model.train.centre_offset_m, extras=extras)
+        emergency = any(step.get("emergency") for _, step in self._script.steps)
+        meta = run_metadata(sim, scenario=self._args.scenario,
+                            brake_params=str(spec.params.source),
+                            coupler_lut=str(spec.lut.source),
+                            **({"commands_file": str(self._script.source)}
+                               if self._args.commands else {}),
+                            **({"command_time_s": next(
+                                t for t, step in self._script.steps if step.get("emergency"))}
+                               if emergency else {}))
+        rec = Recorder(str(self._folder), plant_topics("/", extras), logging.getLogger(__name__),
+                       metadata=meta)
+        try:
+            rec.check()
+            rec.open()
+        except StartupError as exc:
+            raise InputError("command line", "--record", exc.reason) from None
+        except (LookupError, ImportError) as exc:  # the message definitions written in the file
+            raise InputError("command line", "--record", f"{exc}: a recording needs std_msgs, "
+                             "sensor_msgs and rosgraph_msgs installed") from None
+        self._rec = rec
+        self._state(snap)
+        return self
+
+    def _state(self, snap) -> None:
+        from ..recording.cdr_encode import encode_bool, encode_float64
+        from ..recording.plant_topics import COMMAND_TOPICS, qualify
+
+        t_ns = round(snap.time_s * 1e9)  # the node's stamp of a state
+        steps = self._script.steps
+        topic_of = {name: topic for topic, (_, name) in COMMAND_TOPICS.items()}
+        # the commands the next chunk applies, then the state they start from
+        while self._next < len(steps) and steps[self._next][0] <= snap.time_s + 1e-9:
+            for name, value in steps[self._next][1].items():
+                self._rec.write(qualify("/", topic_of[name]), encode_bool(value)
+                                if name == "emergency" else encode_float64(value), t_ns)
+            self._next += 1
+        for topic, data in self._encoder.encode(snap, t_ns):
+            self._rec.write(qualify("/", topic), data, t_ns)
+
+    def __exit__(self, *exc) -> None:
+        if self._rec is None:
+            return
+        self._rec.close()
+        if self._rec.error:
+            raise InputError("command line", "--record", f"recording {self._folder} failed: "
+                             f"{self._rec.error}")
