@@ -149,7 +149,9 @@ class PlantRunner:
         #: The latest time of the followed clock [s] (None before the first).
         self.follow_target_s: float | None = None
         self._follow_pending = False
-        self._clock_back_warned = False
+        #: Times the followed clock went back since the last reset.
+        self.clock_backs = 0
+        self._next_clock_back_log = 0.0
         self._next_reject_log: dict[str, float] = {}
         self._auto_brake_done = False
         self._lut_warned = False
@@ -498,7 +500,8 @@ class PlantRunner:
         snap = self.sim.reset()
         self.resets += 1
         self.run_chunks = 0
-        self._clock_back_warned = False
+        self.clock_backs = 0
+        self._next_clock_back_log = 0.0
         self.commands = Commands()
         self._auto_brake_done = False
         self._lut_warned = False
@@ -554,14 +557,17 @@ class PlantRunner:
             return
         sim, chunk_s = self.sim, self.settings.chunk_s
         if target < sim.time_s - chunk_s - TIME_EPS_S:
-            if not self._clock_back_warned:
-                self._clock_back_warned = True
+            # logged at most every REJECT_LOG_PERIOD_S: two sources of the clock alternate
+            self.clock_backs += 1
+            now = self._clock.monotonic()
+            if now >= self._next_clock_back_log:
+                self._next_clock_back_log = now + REJECT_LOG_PERIOD_S
                 self._log.warning(
                     f"the followed clock went back to t = {format_fixed(target)} s (its "
-                    f"source was reset?); this train holds at t = {format_fixed(sim.time_s)} s "
-                    "until the clock passes it again (~/reset starts it from t = 0)")
+                    f"source was reset, or a second node publishes it?); this train holds at "
+                    f"t = {format_fixed(sim.time_s)} s until the clock passes it again "
+                    f"(~/reset starts it from t = 0; {self.clock_backs} time(s) so far)")
             return
-        self._clock_back_warned = False
         while sim.time_s + chunk_s <= target + TIME_EPS_S and not self.finished.is_set():
             last = sim.time_s + 2.0 * chunk_s > target + TIME_EPS_S
             if not self._run_chunk(last or self._publish_due()):

@@ -78,6 +78,11 @@ INPUT_TOPICS = {topic: (message_class(msg_type), name)
                 for topic, (msg_type, name) in COMMAND_TOPICS.items()}
 #: Wall time between two looks for other ``/clock`` publishers while publishing it [s].
 CLOCK_WATCH_PERIOD_S = 1.0
+#: ``clock:=auto`` looks for another ``/clock`` publisher until this long after the node was
+#: created (DDS discovery of the other processes' endpoints takes a moment) [s].
+CLOCK_DISCOVERY_S = 2.0
+#: Wall time between two looks during that wait [s].
+CLOCK_DISCOVERY_POLL_S = 0.05
 
 Tap = Callable[[str, Any, int, bool], None]
 
@@ -99,6 +104,7 @@ class SimNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
+        self._created = time.monotonic()
         self.runner: PlantRunner | None = None
         try:
             self._setup()
@@ -122,7 +128,7 @@ class SimNode(Node):
         self.simulator = build_simulator(spec, p["chunk_s"], p["tolerance_m_s"])
         self._taps: list[Tap] = []
         log = self.get_logger()
-        # after the kernel is loaded (a second or more): discovery has seen other nodes by now
+        # after the kernel is loaded, while discovery finds the other nodes
         self.clock_mode = self._resolve_clock(p["clock"], p["lockstep"])
         self._outputs = {topic: self.create_publisher(Float64MultiArray, topic, STATE_QOS)
                          for topic, _, _ in ARRAY_TOPICS}
@@ -202,7 +208,11 @@ class SimNode(Node):
         me = (self.get_namespace(), self.get_name())
         found = []
         for info in self.get_publishers_info_by_topic(self.resolve_topic_name(CLOCK_TOPIC)):
-            if (info.node_namespace, info.node_name) != me:
+            if (info.node_namespace, info.node_name) == me:
+                continue
+            if "_UNKNOWN_" in info.node_name:  # endpoint seen before its node's name
+                found.append("another node")
+            else:
                 found.append(f"{info.node_namespace.rstrip('/')}/{info.node_name}")
         return sorted(set(found))
 
@@ -210,7 +220,9 @@ class SimNode(Node):
         """``publish``, ``follow`` or ``off`` for the ``clock`` parameter (``auto`` resolved)."""
         if mode != "auto":
             return mode
-        others = self._other_clock_publishers()
+        deadline = self._created + CLOCK_DISCOVERY_S
+        while not (others := self._other_clock_publishers()) and time.monotonic() < deadline:
+            time.sleep(CLOCK_DISCOVERY_POLL_S)
         if not others:
             return "publish"
         clock = self.resolve_topic_name(CLOCK_TOPIC)
@@ -222,7 +234,8 @@ class SimNode(Node):
 
     def _watch_clock(self) -> None:
         """Warn once about each other node that publishes ``/clock`` too."""
-        new = [name for name in self._other_clock_publishers() if name not in self._clock_warned]
+        new = [name for name in self._other_clock_publishers()
+               if name not in self._clock_warned and name != "another node"]
         if new:
             self._clock_warned.update(new)
             self.get_logger().warning(

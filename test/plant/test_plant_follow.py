@@ -48,6 +48,16 @@ def test_a_clock_that_goes_back_holds_the_follower_with_one_warning_until_it_pas
     warnings = plant.log.at("warning")
     assert len(warnings) == 1 and "went back to t = 0.000 s" in warnings[0] \
         and "holds at t = 0.200 s" in warnings[0]
+    # two sources alternating: logged at most every two seconds, counted
+    for _ in range(3):
+        runner.follow(200_000_000)
+        runner.follow(0)
+        runner.poll()
+    assert len(plant.log.at("warning")) == 1 and runner.clock_backs == 6
+    plant.clock.t += 2.0
+    runner.follow(0)
+    runner.poll()
+    assert plant.log.at("warning")[-1].endswith("7 time(s) so far)")
     runner.follow(240_000_000)
     runner.poll()
     assert plant.stamps_ns[-2:] == [11 * CHUNK_NS, 12 * CHUNK_NS]
