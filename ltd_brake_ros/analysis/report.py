@@ -37,9 +37,10 @@ standard defaults and adhesion is not assessed (the vehicle masses are unknown).
 demand is the largest recorded brake force / weight of each vehicle: sampled at the recorded
 instants, it can fall short of the simulator's, which also takes it as the wheels come to rest.
 
-The brake pipe, when recorded: pipe-pressure profiles along the train at
-:data:`PIPE_PROFILE_OFFSETS_S` after the emergency command (after the start without one) and
-at the end; the cylinder pressure of the head wagon and the tail over time; the pressures at
+The brake pipe, when recorded: pipe-pressure profiles along the train just before the pipe
+first moves (some vehicle's pressure differs from its first sample by more than
+:data:`PIPE_ONSET_PA`), at :data:`PIPE_PROFILE_OFFSETS_S` after that and at the end; the
+cylinder pressure of the head wagon and the tail over time; the pressures at
 the end, and the time from the command until each of those cylinders first reached 95 % of its
 final pressure (interpolated between samples; only for a cylinder that holds at least
 :data:`APPLIED_PA` at the end).
@@ -66,10 +67,13 @@ from .samples import BRAKE_COMMAND, plant_samples
 __all__ = ["RunReport", "analyse"]
 
 _HEAT_BINS = 1500
-#: Times of the pipe-pressure profiles kept, after the emergency command (or the start) [s]:
-#: the emergency wave crosses a 1 000 m train in about 4 s (250-280 m/s) and G cylinders fill
-#: in 18-30 s (UIC 540); the last recorded profile is kept as well.
-PIPE_PROFILE_OFFSETS_S = (0.0, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
+#: Times of the pipe-pressure profiles kept, after the pipe first moves [s]: the emergency
+#: wave crosses a 150 m train in about 0.6 s and a 1 000 m one in about 4 s (250-280 m/s), and
+#: G cylinders fill in 18-30 s (UIC 540).
+PIPE_PROFILE_OFFSETS_S = (0.0, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0)
+#: Pipe-pressure change that counts as the pipe moving [Pa]: a tenth of the first service
+#: step's reduction, 0.4 bar (UIC 540).
+PIPE_ONSET_PA = 0.04e5
 #: Cylinder pressure below which a cylinder counts as released, for the 95 % filling time
 #: [Pa, gauge]: a tenth of the pressure of a first service step (about 1 bar, UIC 540).
 APPLIED_PA = 0.1e5
@@ -212,7 +216,7 @@ class RunReport:
     cylinder_time_s, head_wagon_cylinder_Pa, tail_cylinder_Pa : ndarray
         Gauge cylinder pressure of the head wagon and the tail over time [Pa].
     pipe_reference_time_s : float or None
-        Time the profiles and filling times count from: the command, else the first sample.
+        Time the filling times count from: the command, else the first sample [s].
     head_pipe_end_Pa, tail_pipe_end_Pa : float or None
         Gauge pipe pressure at the head and the tail in the last sample [Pa].
     head_wagon_cylinder_end_Pa, tail_cylinder_end_Pa : float or None
@@ -435,7 +439,7 @@ def analyse(path, namespace: str | None = None) -> RunReport:
     n_vehicles = 0
     head_wagon = None
     first_position = None
-    pipe = _Pipe(info.start_ns * 1e-9)
+    pipe = _Pipe()
     for name, t, _log_ns, value in plant_samples(path, ns):
         if name == "vehicles/speed":
             n_vehicles = value.size
@@ -472,7 +476,6 @@ def analyse(path, namespace: str | None = None) -> RunReport:
                 watch.couplers(t, value)
         elif name == BRAKE_COMMAND and command_t is None and value:
             command_t = t
-            pipe.restart(t)
         elif name == "vehicles/brake_pipe_pressure":
             pipe.pipe(t, value)
         elif name == "vehicles/brake_cylinder_pressure":
@@ -520,7 +523,8 @@ def analyse(path, namespace: str | None = None) -> RunReport:
         rep.peak_buff_kN, rep.peak_buff_coupler = peaks.buff_N / 1e3, peaks.buff_coupler
         rep.peak_buff_time_s = peaks.buff_time_s
         rep.heat_t0_s, rep.heat_t1_s, rep.heat_force_N = heat.result()
-    pipe.result(rep, first_position)
+    pipe.result(rep, first_position,
+                command_t if command_t is not None else info.start_ns * 1e-9)
     if watch is not None and watch.fits(n_vehicles, rep.n_couplers):
         head = speed.np("head")
 
@@ -539,33 +543,28 @@ def analyse(path, namespace: str | None = None) -> RunReport:
 
 
 class _Pipe:
-    """The brake pipe while the recording streams: a few profiles, two cylinders in time.
+    """The brake pipe while the recording streams: a few profiles, two cylinders in time."""
 
-    Parameters
-    ----------
-    start_s : float
-        Time the profiles count from until an emergency command is seen [s].
-    """
-
-    def __init__(self, start_s: float):
-        self.reference_s = start_s
-        self.profiles: dict = {}  # offset index -> (time [s], pressures [Pa])
+    def __init__(self):
+        self.first = None  # the first profile
+        self.before = None  # the last profile before the pipe moved
+        self.onset_s = None
+        self.profiles: list = []  # (time [s], pressures [Pa]) from the onset on
         self.last = None
         self.ends = _Series("t", "head", "tail")
         self.cylinders = _Series("t", "head_wagon", "tail")
 
-    def restart(self, t: float) -> None:
-        """Count the profiles from the emergency command at ``t`` [s] (the pipe before it is
-        charged, so nothing is lost by dropping the profiles kept but one of that instant)."""
-        self.reference_s = t
-        self.profiles.clear()
-        if self.last is not None and self.last[0] >= t - 1e-9:
-            self.profiles[0] = self.last
-
     def pipe(self, t: float, value: np.ndarray) -> None:
-        for i, offset in enumerate(PIPE_PROFILE_OFFSETS_S):
-            if i not in self.profiles and t >= self.reference_s + offset - 1e-9:
-                self.profiles[i] = (t, value)
+        if self.first is None:
+            self.first = value
+        if self.onset_s is None:
+            if float(np.abs(value - self.first).max()) <= PIPE_ONSET_PA:
+                self.before = (t, value)
+            else:
+                self.onset_s = t
+        if self.onset_s is not None and len(self.profiles) < len(PIPE_PROFILE_OFFSETS_S) and \
+                t >= self.onset_s + PIPE_PROFILE_OFFSETS_S[len(self.profiles)] - 1e-9:
+            self.profiles.append((t, value))
         self.last = (t, value)
         self.ends.add(t, value[0], value[-1])
 
@@ -573,19 +572,20 @@ class _Pipe:
         # the head wagon as for the brake force: the first vehicle behind the head
         self.cylinders.add(t, value[1 if value.size > 1 else 0], value[-1])
 
-    def result(self, rep: RunReport, first_position) -> None:
-        """Put what was kept into ``rep`` (nothing without a recorded pipe)."""
+    def result(self, rep: RunReport, first_position, reference_s: float) -> None:
+        """Put what was kept into ``rep`` (nothing without a recorded pipe); the filling times
+        count from ``reference_s`` [s]."""
         if self.last is None:
             return
-        kept = sorted(self.profiles.values(), key=lambda p: p[0])
-        if not kept or kept[-1][0] < self.last[0]:
+        kept = [self.before] + self.profiles
+        if kept[-1][0] < self.last[0]:
             kept.append(self.last)
         n = self.last[1].size
         rep.pipe_distance_m = (first_position[0] - first_position) if first_position is not None \
             else np.arange(n, dtype=float)
         rep.pipe_profile_time_s = np.array([t for t, _ in kept])
         rep.pipe_profile_Pa = np.array([p for _, p in kept])
-        rep.pipe_reference_time_s = self.reference_s
+        rep.pipe_reference_time_s = reference_s
         rep.head_pipe_end_Pa = float(self.ends.np("head")[-1])
         rep.tail_pipe_end_Pa = float(self.ends.np("tail")[-1])
         if not len(self.cylinders):
@@ -596,8 +596,8 @@ class _Pipe:
         rep.tail_cylinder_Pa = self.cylinders.np("tail")
         rep.head_wagon_cylinder_end_Pa = float(rep.head_wagon_cylinder_Pa[-1])
         rep.tail_cylinder_end_Pa = float(rep.tail_cylinder_Pa[-1])
-        rep.head_wagon_fill_time_s = _fill_time(t, rep.head_wagon_cylinder_Pa, self.reference_s)
-        rep.tail_fill_time_s = _fill_time(t, rep.tail_cylinder_Pa, self.reference_s)
+        rep.head_wagon_fill_time_s = _fill_time(t, rep.head_wagon_cylinder_Pa, reference_s)
+        rep.tail_fill_time_s = _fill_time(t, rep.tail_cylinder_Pa, reference_s)
 
 
 def _fill_time(t: np.ndarray, p: np.ndarray, reference_s: float) -> float | None:

@@ -6,7 +6,8 @@ import pytest
 
 from ltd_brake_ros.analysis.export import write_csv
 from ltd_brake_ros.analysis.plots import write_plots
-from ltd_brake_ros.analysis.report import FILLED, PIPE_PROFILE_OFFSETS_S, analyse
+from ltd_brake_ros.analysis.report import (FILLED, PIPE_ONSET_PA, PIPE_PROFILE_OFFSETS_S,
+                                          analyse)
 from ltd_brake_ros.cli.main import main
 from ltd_brake_ros.cli.simulate import RECORD_CHUNK_S
 from ltd_brake_ros.inputs import load_brake_params, load_consist
@@ -72,7 +73,7 @@ def test_only_a_few_profiles_are_kept(pipe_run):
     _, rep = pipe_run
     k, n = rep.pipe_profile_Pa.shape
     assert n == rep.n_vehicles == 11
-    assert k <= len(PIPE_PROFILE_OFFSETS_S) + 1
+    assert k <= len(PIPE_PROFILE_OFFSETS_S) + 2  # and the one before the pipe moves, the end
     assert np.all(np.diff(rep.pipe_profile_time_s) > 0)
     # distance behind the head grows along the train, up to about its length (145.8 m)
     assert rep.pipe_distance_m[0] == 0.0 and np.all(np.diff(rep.pipe_distance_m) > 0)
@@ -83,8 +84,11 @@ def test_summary_agrees_with_the_simulator(pipe_run, fine):
     _, rep = pipe_run
     t, pipe, cyl = fine
     assert rep.pipe_reference_time_s == rep.command_time_s == 0.0
-    # the first profile is the charged pipe at the command
-    np.testing.assert_array_equal(rep.pipe_profile_Pa[0], pipe[0])
+    # the first profile is the charged pipe, the second one has moved: the wave starts there
+    assert np.abs(rep.pipe_profile_Pa[0] - pipe[0]).max() <= PIPE_ONSET_PA
+    assert np.abs(rep.pipe_profile_Pa[1] - pipe[0]).max() > PIPE_ONSET_PA
+    assert rep.pipe_profile_time_s[1] - rep.pipe_profile_time_s[0] == pytest.approx(
+        RECORD_CHUNK_S)
     for k, tk in enumerate(rep.pipe_profile_time_s):
         for j in (0, rep.n_vehicles - 1):
             assert _within_a_chunk(t, pipe[:, j], tk, rep.pipe_profile_Pa[k, j])
