@@ -36,6 +36,8 @@ PARAMETER_ARGUMENTS = {
                 "Simulated time advanced and published per chunk [s]"),
     "real_time_factor": ("real_time_factor", "float",
                          "Simulated seconds per wall second; 0 = as fast as possible"),
+    "publish_every": ("publish_every", "int",
+                      "Publish (and record) the state after every N-th chunk, for faster runs"),
     "lock_step": ("lockstep", "bool",
                   "true: advance only when <namespace>/sim_node/step is called"),
     "clock": ("clock", "str",
@@ -94,9 +96,10 @@ def _typed(argument: str, text: str, kind: str):
     if kind == "bool":
         return text == "true"  # the argument's choices admit only true and false
     try:
-        return float(text)
+        return int(text) if kind == "int" else float(text)
     except ValueError:
-        raise ValueError(f"launch argument {argument}: {text!r} is not a number") from None
+        what = "a whole number" if kind == "int" else "a number"
+        raise ValueError(f"launch argument {argument}: {text!r} is not {what}") from None
 
 
 def _plant(context):

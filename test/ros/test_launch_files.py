@@ -236,15 +236,19 @@ def test_sim_launch_starts_the_plant_with_the_installed_file_and_typed_overrides
         assert types_of.get(parameter) == kind, f"argument {argument} sets {parameter}"
 
     node, = launch("sim.launch.py", namespace="/t7", real_time_factor="0", lock_step="true",
-                   consist="6", record_dir="runs/x", initial_speed_kmh="80")
+                   consist="6", record_dir="runs/x", initial_speed_kmh="80", publish_every="5")
     assert node.kwargs["namespace"] == "/t7"
     assert _overrides(node) == {"real_time_factor": 0.0, "lockstep": True, "consist": "6",
-                                "record_dir": "runs/x", "initial_speed_kmh": 80.0}
+                                "record_dir": "runs/x", "initial_speed_kmh": 80.0,
+                                "publish_every": 5}
     assert all(type(v).__name__ == types_of[k] for k, v in _overrides(node).items())
 
     with pytest.raises(ValueError, match="launch argument real_time_factor: 'fast' is not a "
                                          "number"):
         launch("sim.launch.py", real_time_factor="fast")
+    with pytest.raises(ValueError, match="launch argument publish_every: '2.5' is not a whole "
+                                         "number"):
+        launch("sim.launch.py", publish_every="2.5")
     with pytest.raises(ValueError, match='Argument "lock_step" provided value "yes"'):
         launch("sim.launch.py", lock_step="yes")
     with pytest.raises(ValueError, match="launch argument params_file: /nonexistent.yaml is "
