@@ -42,7 +42,7 @@ PARAMETER_ARGUMENTS = {
                   "true: advance only when <namespace>/sim_node/step is called"),
     "clock": ("clock", "str",
               "/clock policy: auto (publish unless another plant does, then follow it), "
-              "publish, follow (run on another plant's /clock) or off"),
+              "publish, follow (run on another plant's /clock) or none"),
     "auto_brake_at_s": ("auto_brake_at_s", "float",
                         "Emergency brake by itself at this simulated time [s]; -1 = never"),
     "max_sim_time_s": ("max_sim_time_s", "float",
@@ -58,7 +58,7 @@ PARAMETER_ARGUMENTS = {
 }
 #: Accepted values of the arguments that have a fixed set (empty = the file's value).
 CHOICES = {"bool": ["", "true", "false"],
-           "clock": ["", "auto", "publish", "follow", "off"]}
+           "clock": ["", "auto", "publish", "follow", "none"]}
 #: Arguments that do not set a parameter: argument -> (default, description).
 OTHER_ARGUMENTS = {
     "namespace": ("", "Namespace of the node and its topics, e.g. /train1 (empty = /)"),

@@ -221,7 +221,7 @@ def test_every_launch_file_loads_and_xml_ones_include_installed_files(launch):
 
 
 def test_sim_launch_starts_the_plant_with_the_installed_file_and_typed_overrides(launch, prefix):
-    from ltd_brake_ros.ros.params import PARAMETERS
+    from ltd_brake_ros.ros.params import CLOCK_MODES, PARAMETERS
 
     installed = str(prefix / "share" / PACKAGE / "config" / "sim_node.yaml")
     node, = launch("sim.launch.py")
@@ -234,6 +234,8 @@ def test_sim_launch_starts_the_plant_with_the_installed_file_and_typed_overrides
     types_of = {p.name: type(p.default).__name__ for p in PARAMETERS}
     for argument, (parameter, kind, _) in sim.PARAMETER_ARGUMENTS.items():
         assert types_of.get(parameter) == kind, f"argument {argument} sets {parameter}"
+    # a choice the node refuses would pass the launch and stop the node
+    assert sim.CHOICES["clock"] == ["", *CLOCK_MODES]
 
     node, = launch("sim.launch.py", namespace="/t7", real_time_factor="0", lock_step="true",
                    consist="6", record_dir="runs/x", initial_speed_kmh="80", publish_every="5")
