@@ -11,7 +11,9 @@ from .options import CONVENTIONS
 DESCRIPTION = """\
 Analyse a recorded run (bag folder or .mcap): emergency command time, stopping distance and
 time, peak draft and buff force with coupler number and time; writes PNG plots (speed, brake
-force, peak force per coupler, coupler force map) and, with --csv, the arrays in SI units.
+force, peak force per coupler, coupler force map; with a brake pipe recorded, the pipe pressure
+along the train and the head-wagon and tail cylinder pressures, with their 95 % filling times)
+and, with --csv, the arrays in SI units.
 """
 
 

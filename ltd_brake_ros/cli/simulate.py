@@ -17,7 +17,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "stopping distance and time from it, the peak draft and buff forces with "
                     "their coupler numbers, the strength and adhesion verdicts and the cost.",
         epilog=CONVENTIONS + "\nexamples:\n  ltd-brake simulate --scenario 6\n"
-               "  ltd-brake simulate --consist my_train.yaml --speed-kmh 80 --json\n",
+               "  ltd-brake simulate --consist my_train.yaml --speed-kmh 80 --json\n"
+               "  ltd-brake simulate --scenario 6 --params brake_params/uic_brake_pipe.yaml "
+               "--record runs/s6_pipe\n",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     add_run_spec_options(p)
     p.add_argument("--commands", metavar="FILE",
@@ -60,8 +62,8 @@ def run(args: argparse.Namespace) -> int:
     # the emergency stop as a one-command script, so that the simulator (and its verdicts)
     # outlives the run; the chunks are those of emergency_stop, and so are the results
     script = CommandScript(((0.0, {"emergency": True}),))
-    start = time.perf_counter()
     with _Progress() as progress, _Recording(args, spec, script) as rec:
+        start = time.perf_counter()  # the run and its recording, not opening the folder
         sim = scripted_run(spec.consist, spec.speed_kmh, script, params, lut,
                            spec.track, step_s=args.step_s, tolerance_m_s=tolerance(args),
                            chunk_s=rec.chunk_s(CHUNK_S), max_time_s=MAX_TIME_S,
@@ -126,8 +128,8 @@ def _run_script(args: argparse.Namespace, spec) -> int:
     script = load_command_script(args.commands)
     events = []
 
-    start = time.perf_counter()
     with _Progress() as progress, _Recording(args, spec, script) as rec:
+        start = time.perf_counter()  # the run and its recording, not opening the folder
         sim = scripted_run(spec.consist, spec.speed_kmh, script, spec.params, spec.lut,
                            spec.track, step_s=args.step_s, tolerance_m_s=tolerance(args),
                            chunk_s=rec.chunk_s(RECORD_CHUNK_S),
