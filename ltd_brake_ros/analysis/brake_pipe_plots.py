@@ -85,13 +85,17 @@ def profiles_figure(distance_m, profile_time_s, profile_Pa, time_s, cylinder_Pa:
         Left: pipe pressure [bar] against distance at each instant; right: cylinder
         pressures [bar] against time.
     """
+    from matplotlib import colormaps
     from matplotlib.figure import Figure
 
     x = np.asarray(distance_m, float)
     fig = Figure(figsize=(11, 4.2))
     left, right = fig.subplots(1, 2)
-    for tk, pk in zip(np.asarray(profile_time_s, float), np.asarray(profile_Pa, float)):
-        left.plot(x, pk / BAR, marker=".", ms=3, lw=1, label=f"{tk:.1f} s")
+    marker = "." if x.size <= 100 else None  # dots would hide the lines of a long train
+    times = np.asarray(profile_time_s, float)
+    colours = colormaps["viridis"](np.linspace(0.0, 0.9, max(times.size, 1)))  # dark: early
+    for tk, pk, colour in zip(times, np.asarray(profile_Pa, float), colours):
+        left.plot(x, pk / BAR, marker=marker, ms=3, lw=1, color=colour, label=f"{tk:.1f} s")
     left.set_xlabel("distance along the train [m]")
     left.set_ylabel("brake-pipe pressure [bar, gauge]")
     left.legend(fontsize=8, title="time")
