@@ -79,8 +79,10 @@ INPUT_TOPICS = {topic: (message_class(msg_type), name)
 #: Wall time between two looks for other ``/clock`` publishers while publishing it [s].
 CLOCK_WATCH_PERIOD_S = 1.0
 #: ``clock:=auto`` looks for another ``/clock`` publisher until this long after the node was
-#: created (DDS discovery of the other processes' endpoints takes a moment) [s].
-CLOCK_DISCOVERY_S = 2.0
+#: created, and at least CLOCK_DISCOVERY_MIN_S (DDS discovery of the other processes'
+#: endpoints takes a moment, seconds on a busy machine) [s].
+CLOCK_DISCOVERY_S = 3.0
+CLOCK_DISCOVERY_MIN_S = 1.0
 #: Wall time between two looks during that wait [s].
 CLOCK_DISCOVERY_POLL_S = 0.05
 
@@ -220,11 +222,16 @@ class SimNode(Node):
         """``publish``, ``follow`` or ``off`` for the ``clock`` parameter (``auto`` resolved)."""
         if mode != "auto":
             return mode
-        deadline = self._created + CLOCK_DISCOVERY_S
+        deadline = max(self._created + CLOCK_DISCOVERY_S,
+                       time.monotonic() + CLOCK_DISCOVERY_MIN_S)
         while not (others := self._other_clock_publishers()) and time.monotonic() < deadline:
             time.sleep(CLOCK_DISCOVERY_POLL_S)
         if not others:
             return "publish"
+        named = time.monotonic() + CLOCK_DISCOVERY_MIN_S  # its node's name follows shortly
+        while others == ["another node"] and time.monotonic() < named:
+            time.sleep(CLOCK_DISCOVERY_POLL_S)
+            others = self._other_clock_publishers() or others
         clock = self.resolve_topic_name(CLOCK_TOPIC)
         self.get_logger().info(
             f"{clock} is published by {', '.join(others)}: following it, one simulated time "
