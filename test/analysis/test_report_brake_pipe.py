@@ -124,3 +124,15 @@ def test_empirical_run_has_no_pipe_section(tmp_path):
     assert "Brake pipe" not in rep.describe()
     assert not (folder / "report" / "brake_pipe.png").exists()
     assert (folder / "report" / "speed.png").read_bytes()[:8] == PNG
+
+
+def test_record_into_a_used_folder_is_one_line(tmp_path, capsys):
+    folder = tmp_path / "used"
+    folder.mkdir()
+    (folder / "notes.txt").write_text("an earlier run\n")
+    assert main(["simulate", "--consist", CONSIST, "--speed-kmh", "30", "--record",
+                 str(folder)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("ltd-brake simulate: error:") and err.count("\n") == 1, err
+    assert "--record" in err and "not empty" in err
+    assert [p.name for p in folder.iterdir()] == ["notes.txt"]
