@@ -38,9 +38,9 @@ demand is the largest recorded brake force / weight of each vehicle: sampled at 
 instants, it can fall short of the simulator's, which also takes it as the wheels come to rest.
 
 The brake pipe, when recorded: pipe-pressure profiles along the train just before the pipe
-first moves (some vehicle's pressure differs from its first sample by more than
-:data:`PIPE_ONSET_PA`), at :data:`PIPE_PROFILE_OFFSETS_S` after that and at the end; the
-cylinder pressure of the head wagon and the tail over time; the pressures at
+first moves (some vehicle's pressure differs from its first sample, or from its sample at the
+emergency command, by more than :data:`PIPE_ONSET_PA`), at :data:`PIPE_PROFILE_OFFSETS_S`
+after that and at the end; the cylinder pressure of the head wagon and the tail over time; the pressures at
 the end, and the time from the command until each of those cylinders first reached 95 % of its
 final pressure (interpolated between samples; only for a cylinder that holds at least
 :data:`APPLIED_PA` at the end).
@@ -477,6 +477,7 @@ def analyse(path, namespace: str | None = None) -> RunReport:
                 watch.couplers(t, value)
         elif name == BRAKE_COMMAND and command_t is None and value:
             command_t = t
+            pipe.command()
         elif name == "vehicles/brake_pipe_pressure":
             pipe.pipe(t, value)
         elif name == "vehicles/brake_cylinder_pressure":
@@ -554,6 +555,14 @@ class _Pipe:
         self.last = None
         self.ends = _Series("t", "head", "tail")
         self.cylinders = _Series("t", "head_wagon", "tail")
+
+    def command(self) -> None:
+        """The emergency command: the profiles start again from the pipe as it is now."""
+        if self.last is not None:
+            self.first = self.last[1]
+            self.before = self.last
+            self.onset_s = None
+            self.profiles.clear()
 
     def pipe(self, t: float, value: np.ndarray) -> None:
         if self.first is None:

@@ -136,3 +136,19 @@ def test_record_into_a_used_folder_is_one_line(tmp_path, capsys):
     assert err.startswith("ltd-brake simulate: error:") and err.count("\n") == 1, err
     assert "--record" in err and "not empty" in err
     assert [p.name for p in folder.iterdir()] == ["notes.txt"]
+
+
+def test_profiles_follow_the_emergency_after_a_service_application(tmp_path):
+    folder = tmp_path / "run"
+    assert main(["simulate", "--consist", CONSIST, "--speed-kmh", "60", "--params", PIPE_PARAMS,
+                 "--commands", "config/commands/service_then_emergency.yaml", "--record",
+                 str(folder), "--json"]) == 0
+    rep = analyse(folder)
+    assert rep.command_time_s is not None and rep.command_time_s > 0.0
+    assert rep.pipe_reference_time_s == rep.command_time_s
+    # the profiles show the emergency wave, not the service application before it
+    times, profiles = rep.pipe_profile_time_s, rep.pipe_profile_Pa
+    assert times[0] >= rep.command_time_s
+    assert np.abs(profiles[1] - profiles[0]).max() > PIPE_ONSET_PA
+    assert profiles[-1].max() < profiles[0].min()  # vented everywhere at the end
+    assert rep.tail_fill_time_s is not None and rep.tail_fill_time_s > 0.0
