@@ -40,10 +40,10 @@ instants, it can fall short of the simulator's, which also takes it as the wheel
 The brake pipe, when recorded: pipe-pressure profiles along the train just before the pipe
 first moves (some vehicle's pressure differs from its first sample, or from its sample at the
 emergency command, by more than :data:`PIPE_ONSET_PA`), at :data:`PIPE_PROFILE_OFFSETS_S`
-after that and at the end; the cylinder pressure of the head wagon and the tail over time; the pressures at
-the end, and the time from the command until each of those cylinders first reached 95 % of its
-final pressure (interpolated between samples; only for a cylinder that holds at least
-:data:`APPLIED_PA` at the end).
+after that and at the end; the cylinder pressure of the head wagon and the tail over time; the
+pressures at the end, and the time from the command until each of those cylinders first
+reached 95 % of its final pressure (interpolated between samples; only for a cylinder that
+holds at least :data:`APPLIED_PA` at the end).
 
 The file is streamed: time series of the head and tail (a few numbers per sample) are kept,
 the coupler heat map is reduced on the fly to at most a few thousand time bins (each holding

@@ -223,8 +223,9 @@ class _Progress:
 class _Recording:
     """The ``--record`` folder of a run: the states, ``/clock`` and the script's commands.
 
-    Written as ``sim_node`` records a run (:func:`~ltd_brake_ros.recording.plant_topics.plant_topics`
-    in the root namespace, :class:`~ltd_brake_ros.recording.plant_topics.StateEncoder`, so a
+    Written as ``sim_node`` records a run
+    (:func:`~ltd_brake_ros.recording.plant_topics.plant_topics` in the root namespace,
+    :class:`~ltd_brake_ros.recording.plant_topics.StateEncoder`, so a
     brake model's extras such as the brake-pipe pressures are recorded too), with the run
     information of :func:`~ltd_brake_ros.recording.metadata.run_metadata`. Each command is
     recorded at the chunk boundary where :func:`~ltd_brake_ros.studies.runs.scripted_run`
