@@ -21,10 +21,9 @@ from ..inputs import InputError, consist_from_mapping
 from ..inputs.campaign import Campaign, load_campaign
 from ..plant.recorder import Recorder
 from ..plant.settings import StartupError
-from ..recording.cdr_encode import encode_bool, encode_clock, encode_float64, encode_float64_array
+from ..recording.cdr_encode import encode_bool, encode_float64
 from ..recording.metadata import run_metadata
-from ..recording.plant_topics import (ARRAY_TOPICS, CLOCK_TOPIC, COMMAND_TOPICS, plant_topics,
-                                      qualify)
+from ..recording.plant_topics import COMMAND_TOPICS, StateEncoder, plant_topics, qualify
 from ..simulator import Commands, SimulationError, Simulator
 from .campaign import CHUNK_S, SCRIPT_CHUNK_S, draw, models
 
@@ -152,7 +151,10 @@ def rerun(c: Campaign, run_id: int, manoeuvre: str, out, *, namespace: str = "/"
         manoeuvre_kind=m.kind, sample=sample, brake_params=str(params.source),
         coupler_lut=str(lut.source),
         **({"command_time_s": 0.0} if m.kind != "traction_start" else {}))  # a brake command
-    rec = Recorder(str(out), plant_topics(namespace), _log, metadata=meta)
+    # the node's messages: arrays, stamped state, the brake model's extras, /clock
+    extras = tuple(sim.snapshot().extras)
+    encoder = StateEncoder(sim.n, sim.model.train.centre_offset_m, extras=extras)
+    rec = Recorder(str(out), plant_topics(namespace, extras), _log, metadata=meta)
     messages = [0]
 
     def write(topic: str, data: bytes, t_ns: int) -> None:
@@ -161,10 +163,8 @@ def rerun(c: Campaign, run_id: int, manoeuvre: str, out, *, namespace: str = "/"
 
     def publish(snap) -> int:
         t_ns = round(snap.time_s * 1e9)  # the node's stamp of a state
-        for topic, attribute, label in ARRAY_TOPICS:
-            write(qualify(namespace, topic), encode_float64_array(label, getattr(snap, attribute)),
-                  t_ns)
-        write(CLOCK_TOPIC, encode_clock(t_ns), t_ns)
+        for topic, data in encoder.encode(snap, t_ns):
+            write(qualify(namespace, topic), data, t_ns)
         return t_ns
 
     def command(name: str, value, t_ns: int) -> None:

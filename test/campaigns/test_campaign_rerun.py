@@ -83,6 +83,10 @@ def test_worst_runs_recorded_as_the_node_records_and_reported_alike(results, tmp
         assert info.complete and (folder / "metadata.yaml").is_file()
         assert {t: (i.msg_type, i.qos_profiles) for t, i in info.topics.items()} == declared
         assert info.topics["/brake_command"].message_count == 1
+        # every state goes out as arrays and stamped, as the node publishes it
+        states = info.topics["/vehicles/speed"].message_count
+        assert states > 1 and info.topics["/vehicles/state"].message_count == states
+        assert info.topics["/couplers/state"].message_count == states
         assert info.metadata["run_id"] == row["run_id"]
         assert info.metadata["initial_speed_kmh"] == pytest.approx(row["speed_kmh"])
         rep = analyse(folder)
@@ -141,6 +145,8 @@ def test_topics_are_the_nodes():
 
     node = ([(f"/{t}", "std_msgs/msg/Float64MultiArray", qos_profiles_yaml(STATE_QOS))
              for t, _, _ in sim_node.ARRAY_TOPICS]
+            + [(f"/{t}", type_name(sim_node.JointState), qos_profiles_yaml(STATE_QOS))
+               for t, _ in sim_node.STATE_TOPICS]
             + [(sim_node.CLOCK_TOPIC, "rosgraph_msgs/msg/Clock", qos_profiles_yaml(CLOCK_QOS))]
             + [(f"/{t}", type_name(cls), qos_profiles_yaml(COMMAND_QOS))
                for t, (cls, _) in sim_node.INPUT_TOPICS.items()])
