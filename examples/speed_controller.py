@@ -31,6 +31,7 @@ Topic and service names are relative: start both nodes in the same namespace, e.
 from __future__ import annotations
 
 import math
+import signal
 import sys
 import time
 from dataclasses import dataclass
@@ -342,6 +343,9 @@ def main(args: list[str] | None = None) -> int:
         rclpy.logging.get_logger("speed_controller").error(str(exc))
         return 1
     finally:
+        # Ctrl-C under ros2 launch arrives twice (the terminal's and the launch's): the second
+        # must not cut the clean-up short
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
         if node is not None:
             node.close()
         rclpy.try_shutdown()

@@ -30,6 +30,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 CONTROLLER = "speed_controller.py"
 #: Control period = the leader's chunk [s]; followers advance in chunks of the same length.
 CHUNK_S = 0.1
+#: Wall time the controller waits for its plant at start-up [s].
+CONNECT_TIMEOUT_S = 600.0
 #: Scenarios of config/scenarios.yaml run by train 2, 3, ... (cycled).
 FOLLOWER_SCENARIOS = (2, 4, 1, 3, 5)
 #: Arguments: name -> (default, description).
@@ -96,7 +98,9 @@ def _trains(context):
         **sim.installed_executable(CONTROLLER), name="speed_controller", namespace="/train1",
         parameters=[{"target_speed_kmh": _number("target_speed_kmh", value("target_speed_kmh")),
                      "duration_s": _number("duration_s", value("duration_s")),
-                     "use_sim_time": True}],
+                     # the first start after an install compiles the plants' kernel, several
+                     # at once here: minutes on a busy machine
+                     "connect_timeout_s": CONNECT_TIMEOUT_S, "use_sim_time": True}],
         output="screen", emulate_tty=True,
         on_exit=Shutdown(reason="speed_controller finished")))
     return actions
