@@ -349,9 +349,10 @@ class RunReport:
                          f"distance {self.stopping_distance_m:.1f} m, stopping time "
                          f"{self.stopping_time_s:.2f} s")
         if self.n_couplers:
-            lines.append(f"Peak draft: {self.peak_draft_kN:.1f} kN at coupler "
+            lines.append(f"Peak draft: {round(self.peak_draft_kN, 1) + 0.0:.1f} kN at coupler "
                          f"{self.peak_draft_coupler} (t = {self.peak_draft_time_s:.2f} s)")
-            lines.append(f"Peak buff: {self.peak_buff_kN:.1f} kN at coupler "
+            # + 0.0: a buff that rounds to nothing prints 0.0, not -0.0
+            lines.append(f"Peak buff: {round(self.peak_buff_kN, 1) + 0.0:.1f} kN at coupler "
                          f"{self.peak_buff_coupler} (t = {self.peak_buff_time_s:.2f} s)")
             lines.append(f"Sign convention: {_SIGN}")
         if self.has_brake_pipe:
