@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rcl_interfaces.srv import GetParameters
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
@@ -310,6 +311,10 @@ class SpeedController(Node):
             if steps % report_every == 0:
                 log.info(f"t = {steps * dt_s:6.1f} s: {self._head_speed_m_s * KMH_PER_M_S:5.1f}"
                          f" km/h, traction {traction:+.2f}, brake demand {brake:.2f}")
+        # the last commands are for a step that is not asked for; they reach the plant (and
+        # its recording) before this node goes away
+        for pub in (self._traction_pub, self._brake_pub):
+            pub.wait_for_all_acked(Duration(seconds=self.timeout_s))
         log.info(f"done after {steps} steps ({steps * dt_s:g} s simulated)")
 
     def close(self) -> None:

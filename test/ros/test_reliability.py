@@ -647,5 +647,7 @@ def test_memory_stays_flat_over_a_long_recorded_run(processes, probe, tmp_path):
     bag_mb = sum(f.stat().st_size for f in folder.iterdir()) / 1e6
     print(f"\nmemory: RSS {warm / 1024:.1f} MB after 60 s simulated, peak {end / 1024:.1f} MB "
           f"up to {samples[-1][0]:.0f} s; bag {bag_mb:.1f} MB")
-    assert samples[-1][0] >= 500.0
+    # diagnostics come once per wall second: at over 100x real time the last one can come
+    # more than 100 s before the end
+    assert samples[-1][0] >= 300.0
     assert end - warm < 10 * 1024, samples[::10]
