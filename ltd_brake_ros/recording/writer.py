@@ -184,7 +184,11 @@ class BagWriter:
                                   len(records), crc, len(comp)) \
             + comp + struct.pack("<Q", len(data))
         offset = self._pos
-        parts = [head, data]
+        # the chunk first: once it is on disk its messages are recoverable, whether or not
+        # its message indexes follow (a full disk may stop the file between the two)
+        self._emit([head, data])
+        self._on_disk += messages
+        parts = []
         pos = offset + len(head) + len(data)
         chunk_length = pos - offset
         offsets = {}
@@ -202,7 +206,6 @@ class BagWriter:
             message_index_length=pos - offset - chunk_length, compression=self.compression,
             compressed_size=len(data), uncompressed_size=len(records)))
         self._chunk_count += 1
-        self._on_disk += messages
 
     # ----------------------------------------------------------------- calling threads
 

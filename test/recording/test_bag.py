@@ -423,6 +423,36 @@ def test_cut_at_random_offsets_then_recover(tmp_path, recorded):
                 assert bag_info(tmp_path / f"rec{cut}").metadata == RUN_INFO
 
 
+@pytest.mark.parametrize("full_at", [(0x06, 2), (0x07, 1), (0x07, 2)])
+def test_messages_on_disk_are_what_recovers_wherever_the_disk_fills(tmp_path, full_at):
+    # the file stops growing at the n-th record group of one kind the writer emits: a chunk
+    # (opcode 0x06) or the message indexes after it (0x07), where a full disk may land
+    # between a chunk and its indexes; what the writer calls on disk is what recovers
+    opcode, nth = full_at
+    w = BagWriter(tmp_path / "f", flush_interval_s=0.0)
+    emit, seen = w._emit, [0]
+
+    def filling(parts):
+        if parts and parts[0][0] == opcode:
+            seen[0] += 1
+            if seen[0] >= nth:
+                raise OSError(27, "File too large")
+        emit(parts)
+
+    w._emit = filling
+    w.add_topic("/a", TYPES["BOOL"])
+    for i in range(4):
+        try:
+            w.write("/a", serialize_message(Bool(data=True)), i)
+            w.flush()
+        except OSError:
+            break
+    assert 0 < w.messages_on_disk < 4
+    w._emit = emit
+    res = recover(tmp_path / "f", tmp_path / "copy")
+    assert res["messages"] == w.messages_on_disk and not res["complete"], res
+
+
 def test_recover_a_complete_bag_keeps_everything(tmp_path, recorded):
     folder, messages = recorded
     res = recover(folder, tmp_path / "copy")
