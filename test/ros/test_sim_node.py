@@ -495,7 +495,7 @@ def test_colcon_build_installs_what_ros2_run_resolves(tmp_path):
     src.mkdir(parents=True)
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc", "*.egg-info")
     for entry in ("package.xml", "setup.py", "setup.cfg", "README.md", "LICENSE", "resource",
-                  "config", "ltd_brake_ros"):
+                  "config", "launch", "layouts", "examples", "ltd_brake_ros"):
         path = REPO / entry
         if path.is_dir():
             shutil.copytree(path, src / entry, ignore=ignore)
@@ -508,6 +508,15 @@ def test_colcon_build_installs_what_ros2_run_resolves(tmp_path):
     assert build.returncode == 0, build.stdout + build.stderr
     prefix = tmp_path / "install" / "ltd_brake_ros"
     assert os.access(prefix / "lib" / "ltd_brake_ros" / "sim_node", os.X_OK)
+    # what ros2 launch and a workspace user find: launch files, layouts, the example
+    # controller, and the bash setup script users source
+    share = prefix / "share" / "ltd_brake_ros"
+    for launch_file in (REPO / "launch").iterdir():
+        assert (share / "launch" / launch_file.name).is_file(), launch_file.name
+    assert sorted(p.name for p in (share / "layouts").iterdir()) == \
+        sorted(p.name for p in (REPO / "layouts").iterdir())
+    assert os.access(prefix / "lib" / "ltd_brake_ros" / "speed_controller.py", os.X_OK)
+    assert (tmp_path / "install" / "setup.bash").is_file()
 
     # what `ros2 run ltd_brake_ros sim_node` does: package prefix from the ament index, then the
     # executable in <prefix>/lib/<package>
