@@ -749,10 +749,6 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
                 stats.rejected_steps += 1
                 if code == NEWTON_FAILED:
                     shrink = 0.25
-                elif retried:
-                    # a second rejection in a row: the error is not shrinking like a smooth
-                    # solution's (a kink inside the step), so take the step down by its ratio
-                    shrink = max(MAX_SHRINK, SAFETY / ratio)
                 else:
                     shrink = max(MAX_SHRINK, SAFETY * ratio ** (-1.0 / (order + 1.0)))
                 control[NEXT_STEP] = max(hs * shrink, h_min)
