@@ -21,8 +21,9 @@ brake_cylinder_pressure``
 
 Definitions: the emergency command is the first ``brake_command`` that is true (its record
 time), and the speed at it the head's, interpolated between samples; the train has stopped at
-the first recorded ``vehicles/speed`` sample at or after the command in which every vehicle is
-at most ``STANDSTILL_M_S`` (1 mm/s, as the simulator counts a stop); the stopping distance is
+the first recorded ``vehicles/speed`` sample at or after the command in which no vehicle moves
+forward faster than ``STANDSTILL_M_S`` (1 mm/s, as the simulator counts a stop: a vehicle
+pulled back a few centimetres as the couplers relax has stopped); the stopping distance is
 the head's position then minus its position at the command (interpolated between samples).
 Peak forces are the extremes over the whole recording.
 
@@ -445,7 +446,7 @@ def analyse(path, namespace: str | None = None) -> RunReport:
     for name, t, _log_ns, value in plant_samples(path, ns):
         if name == "vehicles/speed":
             n_vehicles = value.size
-            speed.add(t, value[0], value[-1], float(np.abs(value).max()))
+            speed.add(t, value[0], value[-1], float(value.max()))  # forward speed
             if watch is None:
                 watch = _Watch(info.metadata, n_vehicles)
             watch.speed = value

@@ -806,7 +806,7 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
         if watch_stop:
             all_stopped = True
             for i in range(n):
-                if abs(v[i]) > v_stop:
+                if v[i] > v_stop:  # still moving forward (a vehicle rolling back has stopped)
                     all_stopped = False
                     break
             if all_stopped:

@@ -345,7 +345,7 @@ def reference_stop(sim, sample_times_s=None, *, method: str = "BDF", rtol: float
         if t > steps[1]:
             steps[0] += 1
             steps[1] = t
-        return float(np.max(np.abs(y[n:]))) - v_stop
+        return float(np.max(y[n:])) - v_stop  # no vehicle moves forward any more
 
     standstill.terminal = True
     standstill.direction = -1.0

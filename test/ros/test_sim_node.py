@@ -148,8 +148,10 @@ def test_live_plant_stops_like_the_offline_simulator(processes, probe):
     observed_m = positions[-1].data[0] - initial.position_m[0]
     reference = runs.emergency_stop(consist, scenario.speed_kmh)
     assert observed_m == pytest.approx(reference.stopping_distance_m, rel=0.005)
-    assert observed_m == pytest.approx(float(diagnostics(probe, node)["stopping_distance_m"]),
-                                       abs=0.01)
+    # measured 2 s after the stop: the locomotive may have been pulled back a few centimetres as
+    # the couplers relaxed (its brake holds less than the draft the train stored), never forward
+    reported_m = float(diagnostics(probe, node)["stopping_distance_m"])
+    assert reported_m - 0.05 <= observed_m <= reported_m + 0.01
     assert np.all(np.abs(speeds[-1].data) < 1e-2)
 
     # layout, lengths and sign conventions of everything published since the reset
