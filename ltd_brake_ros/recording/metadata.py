@@ -36,6 +36,7 @@ def run_metadata(sim, *, scenario=None, parameters: dict | None = None, **extra)
                     "composition": groups},
         "initial_speed_kmh": float(sim.speed_kmh),
         "step_s": float(sim.step_s),
+        "tolerance_m_s": float(sim.tolerance_m_s or 0.0),  # 0: fixed steps
         # strength and adhesion limits the run was judged by (kN, t): the report reads them back
         "limits": limits_metadata(sim.limits),
     }
