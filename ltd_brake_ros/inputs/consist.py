@@ -1,6 +1,7 @@
 """Consist files: the train, vehicle by vehicle from the head, with the shipped vehicle types."""
 from __future__ import annotations
 
+import functools
 import os
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -312,6 +313,13 @@ def _vehicle_types(source: str, data: Any, path: str) -> dict[str, dict]:
     return out
 
 
+@functools.lru_cache(maxsize=4)
+def _shipped_vehicle_types(path: str, mtime_ns: int) -> dict[str, dict]:
+    """The vehicle types of the shipped library, parsed once per version of the file (a
+    campaign builds thousands of trains from it). Callers copy before merging."""
+    return _vehicle_types(path, (load_yaml(path) or {}).get("vehicle_types"), "vehicle_types")
+
+
 def consist_from_mapping(data: Any, source: str, base: Path | None = None) -> Consist:
     """Validate a consist document.
 
@@ -338,9 +346,8 @@ def consist_from_mapping(data: Any, source: str, base: Path | None = None) -> Co
     train_limits = _parse_limits(top.data["limits"], source, "limits", VehicleLimits()) \
         if top.has("limits") else VehicleLimits()
     train_name = top.string("name", "") or Path(source).stem
-    library = _vehicle_types(str(config_dir() / "vehicles.yaml"),
-                             (load_yaml(config_dir() / "vehicles.yaml") or {}).get("vehicle_types"),
-                             "vehicle_types")
+    shipped = config_dir() / "vehicles.yaml"
+    library = dict(_shipped_vehicle_types(str(shipped), os.stat(shipped).st_mtime_ns))
     library.update(_vehicle_types(source, top.data.get("vehicle_types"), "vehicle_types"))
     entries = top.data.get("vehicles")
     if not isinstance(entries, list):
