@@ -20,9 +20,9 @@ A brake model is one module of this package that defines:
 3. ``initial_state(arrays)`` -> :class:`BrakeState`: the model's only mutable state, released
    brakes; the simulator's reset copies it.
 4. ``advance(arrays, state, events, t0, t1)``, compiled with numba: every vehicle's block force
-   from t0 to t1 [s] under the :class:`CommandEvents` issued at the head, in place; a command
-   reaches vehicle i ``arrays.delay_s[i]`` after it was issued. The result must not depend on
-   how [t0, t1] is split into steps.
+   from t0 to t1 [s] under the :class:`CommandEvents` issued at the venting vehicle (the
+   driver's brake valve), in place; a command reaches vehicle i ``arrays.delay_s[i]`` after it
+   was issued. The result must not depend on how [t0, t1] is split into steps.
 5. Events and snapshot: the simulator raises ``brake_applied`` and ``brake_released`` when the
    commands change; ``snapshot_extras(arrays, state)`` returns the model's further quantities
    (per-vehicle arrays, units in the keys; ``{}`` for none), the snapshot always shows the
