@@ -124,10 +124,8 @@ class SimNode(Node):
                                "plant publishing /clock steps this one")
         self._params = p
         self._run_values = {name: p[name] for name in RESET_PARAMETERS}
-        self.inputs = spec = load_plant_inputs(
-            p["consist"], p["initial_speed_kmh"], p["brake_params_file"], p["coupler_lut_file"],
-            p["track_file"], p["start_chainage_m"])
-        self.simulator = build_simulator(spec, p["chunk_s"], p["tolerance_m_s"])
+        spec, self.simulator = self._build_run(p)
+        self.inputs = spec
         self._taps: list[Tap] = []
         log = self.get_logger()
         # after the kernel is loaded, while discovery finds the other nodes
@@ -178,6 +176,13 @@ class SimNode(Node):
         clock = {"publish": "publishes /clock", "follow": "", "none": "no /clock"}[self.clock_mode]
         log.info(f"{self._describe(spec)}; chunk {s.chunk_s:g} s, {mode}"
                  + (f", {clock}" if clock else ""))
+
+    @staticmethod
+    def _build_run(p: dict) -> tuple[Any, Simulator]:
+        """The run the parameters ``p`` describe: its inputs and simulator (StartupError)."""
+        spec = load_plant_inputs(p["consist"], p["initial_speed_kmh"], p["brake_params_file"],
+                                 p["coupler_lut_file"], p["track_file"], p["start_chainage_m"])
+        return spec, build_simulator(spec, p["chunk_s"], p["tolerance_m_s"])
 
     @staticmethod
     def _describe(spec) -> str:
@@ -284,10 +289,7 @@ class SimNode(Node):
             return self._reply(self.runner.reset(), response)
         p = self._params | values
         try:
-            spec = load_plant_inputs(
-                p["consist"], p["initial_speed_kmh"], p["brake_params_file"],
-                p["coupler_lut_file"], p["track_file"], p["start_chainage_m"])
-            sim = build_simulator(spec, p["chunk_s"], p["tolerance_m_s"])
+            spec, sim = self._build_run(p)
         except StartupError as exc:
             response.success = False
             response.message = (f"not reset: parameter {exc.parameter}: {exc.reason}; the "
