@@ -11,8 +11,9 @@ import numpy as np
 from ..equations import centre_offsets_m
 from ..parameters import CompileError  # noqa: F401 (part of this family's interface)
 
-#: Kinds of command events: an emergency application, or a service application/release.
-EMERGENCY, SERVICE = 0, 1
+#: Kinds of command events: an emergency application, a service application/release, or a
+#: release with overcharge (level 0; a model without overcharge treats it as a release).
+EMERGENCY, SERVICE, OVERCHARGE = 0, 1, 2
 
 
 class BrakeArrays(NamedTuple):
@@ -48,7 +49,7 @@ class BrakeState(NamedTuple):
     level : ndarray
         Level (0-1 of the full force) of the last command each vehicle has received.
     level_kind : ndarray of int
-        Kind of that command (:data:`EMERGENCY` or :data:`SERVICE`).
+        Kind of that command (:data:`EMERGENCY`, :data:`SERVICE` or :data:`OVERCHARGE`).
     next_event : ndarray of int
         Index of the next command event each vehicle has not yet received.
     extra : ndarray, shape (n, k)
@@ -76,7 +77,7 @@ class CommandEvents(NamedTuple):
     level : ndarray
         Demanded fraction of the full block force (0 = release).
     kind : ndarray of int
-        :data:`EMERGENCY` or :data:`SERVICE`.
+        :data:`EMERGENCY`, :data:`SERVICE` or :data:`OVERCHARGE`.
     count : int
         Number of valid entries.
     """
