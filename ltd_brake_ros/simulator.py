@@ -38,7 +38,7 @@ from .inputs.commands import COMMAND_RANGES
 from .physics import brakes as brakes_module
 from .physics import couplers, kernel
 from .physics.brakes import friction
-from .physics.brakes.base import EMERGENCY, SERVICE
+from .physics.brakes.base import EMERGENCY, OVERCHARGE, SERVICE
 from .physics.constants import KMH_PER_MS, STANDSTILL_M_S
 from .physics.equations import (centre_offsets_m, curve_resistance_N_per_kN,
                                 train_braked_weight_percent)
@@ -66,18 +66,27 @@ class Commands:
     traction : float
         Traction (0 to 1) or dynamic-brake (-1 to 0) demand, as a fraction of the powered
         vehicles' available effort.
+    overcharge : bool
+        The release (no emergency, ``brake_demand`` 0) overcharges the brake pipe: the driver's
+        brake valve of the brake-pipe model fills it above running pressure, which shortens
+        the release of a long train; the empirical models release as usual. Held while
+        braking, it acts again at the next release. A change of it alone is a new command.
 
     Raises
     ------
     ValueError
-        A value is not finite or out of range (the message names the field).
+        A value is not finite or out of range, or a flag is not a bool (the message names the
+        field).
     """
 
     emergency: bool = False
     brake_demand: float = 0.0
     traction: float = 0.0
+    overcharge: bool = False
 
     def __post_init__(self):
+        if not isinstance(self.overcharge, (bool, np.bool_)):
+            raise ValueError(f"overcharge must be true or false, got {self.overcharge!r}")
         for name, (lo, hi) in COMMAND_RANGES.items():
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -714,7 +723,12 @@ class Simulator:
         elif not commands.emergency and st.emergency:
             st.emergency = False
             events.append(Event(st.time_s, "brake_released"))
-        level = (1.0, EMERGENCY) if st.emergency else (float(commands.brake_demand), SERVICE)
+        if st.emergency:
+            level = (1.0, EMERGENCY)
+        elif commands.overcharge and commands.brake_demand == 0.0:
+            level = (0.0, OVERCHARGE)
+        else:
+            level = (float(commands.brake_demand), SERVICE)
         if level[0] == 0.0 and st.stop_time_s is None:
             st.command_time_s = None  # released before standstill: a new stop counts anew
         if level != st.brake_command:

@@ -1,5 +1,5 @@
-"""The driver's and train control's inputs: the one table of their accepted ranges, and timed
-command scripts for offline runs."""
+"""The driver's and train control's inputs: the one table of their accepted ranges, the positions
+of the driver's brake valve, and timed command scripts for offline runs."""
 from __future__ import annotations
 
 import os
@@ -13,6 +13,48 @@ from .schema import Fields, load_yaml, resolve_config_path
 #: fraction of the powered vehicles' available effort [-].
 COMMAND_RANGES = {"brake_demand": (0.0, 1.0), "traction": (-1.0, 1.0)}
 
+#: Brake demand of the driver's brake valve's first service step [-]: its pipe reduction over
+#: that of a full service application, 0.45 bar (UIC 541-03: 0.4-0.5 bar) / 1.5 bar (UIC 540).
+#: A distributor's cylinder pressure follows the pipe drop (3.8 bar at 1.5 bar), so the first
+#: step gives this fraction of the full block force.
+FIRST_STEP_DEMAND = 0.45 / 1.5
+
+#: Positions of the driver's brake valve (UIC 540 / UIC 541-03 practice), each as the inputs it
+#: sets (those it leaves out keep their value): ``release_overcharge`` releases and overcharges
+#: the pipe, ``running`` releases at running pressure, ``lap`` holds the present command,
+#: ``service`` is the first service step, ``full_service`` the full service application,
+#: ``emergency`` the emergency application. Between the first step and full service the
+#: ``brake_demand`` input graduates the application.
+VALVE_POSITIONS: dict[str, dict[str, Any]] = {
+    "release_overcharge": {"emergency": False, "brake_demand": 0.0, "overcharge": True},
+    "running": {"emergency": False, "brake_demand": 0.0, "overcharge": False},
+    "lap": {},
+    "service": {"emergency": False, "brake_demand": FIRST_STEP_DEMAND, "overcharge": False},
+    "full_service": {"emergency": False, "brake_demand": 1.0, "overcharge": False},
+    "emergency": {"emergency": True, "overcharge": False},
+}
+#: The fields a valve position sets (a script entry gives either a position or these).
+VALVE_FIELDS = ("emergency", "brake_demand", "overcharge")
+
+
+def valve_position(name: Any) -> dict[str, Any] | None:
+    """The inputs a driver's brake valve position sets, or None for an unknown position.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`VALVE_POSITIONS`; surrounding blanks and letter case are ignored.
+
+    Returns
+    -------
+    dict or None
+        Input name to value (a copy), None if ``name`` is not a position.
+    """
+    if not isinstance(name, str):
+        return None
+    change = VALVE_POSITIONS.get(name.strip().lower())
+    return None if change is None else dict(change)
+
 
 @dataclass(frozen=True)
 class CommandScript:
@@ -22,7 +64,7 @@ class CommandScript:
     ----------
     steps : tuple of (float, dict)
         (time [s], fields that change then: ``emergency`` bool, ``brake_demand`` 0-1,
-        ``traction`` -1-1), sorted by time.
+        ``traction`` -1-1, ``overcharge`` bool), sorted by time.
     duration_s : float or None
         Length of the run [s]; ``None``: until the train stops after a brake command.
     source : str
@@ -38,7 +80,9 @@ def load_command_script(path: str | os.PathLike) -> CommandScript:
     """Load a command script YAML file.
 
     The file holds ``duration_s`` (optional) and ``commands``, a list of mappings with ``t_s``
-    and any of ``emergency``, ``brake_demand``, ``traction``; each holds from its time on.
+    and any of ``emergency``, ``brake_demand``, ``traction``, ``overcharge``, or
+    ``driver_brake_valve`` (a position of :data:`VALVE_POSITIONS`, in place of the first three
+    and ``overcharge``); each holds from its time on.
 
     Parameters
     ----------
@@ -58,18 +102,27 @@ def load_command_script(path: str | os.PathLike) -> CommandScript:
     steps = []
     for i, entry in enumerate(entries):
         f = Fields(entry, str(p), f"commands[{i}]")
-        f.reject_unknown({"t_s", "emergency", "brake_demand", "traction"})
+        f.reject_unknown({"t_s", "emergency", "brake_demand", "traction", "overcharge",
+                          "driver_brake_valve"})
         t = f.number("t_s", lo=0.0)
         if steps and t < steps[-1][0]:
             raise f.error("t_s", f"{t:g} s comes before the previous entry ({steps[-1][0]:g} s)")
         change: dict[str, Any] = {}
-        if f.has("emergency"):
-            change["emergency"] = f.boolean("emergency", False)
-        if f.has("brake_demand"):
-            lo, hi = COMMAND_RANGES["brake_demand"]
-            change["brake_demand"] = f.number("brake_demand", lo=lo, hi=hi)
-        if f.has("traction"):
-            lo, hi = COMMAND_RANGES["traction"]
-            change["traction"] = f.number("traction", lo=lo, hi=hi)
+        if f.has("driver_brake_valve"):
+            given = [name for name in VALVE_FIELDS if f.has(name)]
+            if given:
+                raise f.error("driver_brake_valve", f"give either a valve position or "
+                              f"{', '.join(given)}, not both")
+            change = valve_position(f.data["driver_brake_valve"])
+            if change is None:
+                raise f.error("driver_brake_valve", f"unknown position "
+                              f"{f.data['driver_brake_valve']!r}; expected one of "
+                              f"{', '.join(VALVE_POSITIONS)}")
+        for name in ("emergency", "overcharge"):
+            if f.has(name):
+                change[name] = f.boolean(name, False)
+        for name, (lo, hi) in COMMAND_RANGES.items():
+            if f.has(name):
+                change[name] = f.number(name, lo=lo, hi=hi)
         steps.append((t, change))
     return CommandScript(tuple(steps), duration, str(p))

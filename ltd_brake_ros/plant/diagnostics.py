@@ -179,6 +179,7 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
         "couplers_beyond_lut": str(int((sim.lut_excursion_m != 0.0).sum())),
         "brake_demand": g(commands.brake_demand),
         "traction_command": g(commands.traction),
+        "overcharge_command": "true" if commands.overcharge else "false",
         "rejected_inputs": str(rejected),
         "inputs_handled": str(handled),
         "resets": str(resets),

@@ -21,7 +21,7 @@ from collections import deque
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Mapping
 
-from ..inputs.commands import COMMAND_RANGES
+from ..inputs.commands import COMMAND_RANGES, VALVE_POSITIONS, valve_position
 from ..simulator import Commands, SimulationError, Simulator, Snapshot
 from .diagnostics import (DIAGNOSTICS_PERIOD_S, PaceWindow, PlantStatus, format_fixed,
                           plant_status)
@@ -45,8 +45,9 @@ YIELD_MAX_S = 0.01
 #: As fast as possible, the plant thread offers the GIL to the receiving thread at least this
 #: often (wall time) [s].
 GIL_YIELD_PERIOD_S = 0.02
-#: Inputs the plant takes: the emergency brake (bool) and the numeric :data:`COMMAND_RANGES`.
-INPUTS = ("emergency", *COMMAND_RANGES)
+#: Inputs the plant takes: the emergency brake (bool), the numeric :data:`COMMAND_RANGES` and
+#: the driver's brake valve position (str, a key of :data:`VALVE_POSITIONS`).
+INPUTS = ("emergency", *COMMAND_RANGES, "driver_brake_valve")
 #: Why a following plant refuses to be stepped or paused.
 FOLLOWING = ("this plant follows the clock of another (clock:=follow): it advances with that "
              "clock; step or pause the plant that publishes it")
@@ -201,7 +202,8 @@ class PlantRunner:
         return job.result
 
     def receive(self, name: str, value: Any, message: Any = None) -> Job:
-        """Queue an input: ``emergency`` (bool) or a key of :data:`COMMAND_RANGES` (float)."""
+        """Queue an input: ``emergency`` (bool), a key of :data:`COMMAND_RANGES` (float) or
+        ``driver_brake_valve`` (a position name)."""
         if name not in INPUTS:
             raise KeyError(f"unknown input {name!r}; expected one of {', '.join(INPUTS)}")
         return self.submit(lambda: self._on_input(name, value, message))
@@ -461,19 +463,29 @@ class PlantRunner:
             # held until changed; the simulator ignores a repeated true
             self.commands = replace(self.commands, emergency=bool(value))
             return
+        if name == "driver_brake_valve":
+            change = valve_position(value)
+            if change is not None:
+                self.commands = replace(self.commands, **change)
+                return
+            self._reject(name, f"rejected {value!r}, expected a position of the driver's brake "
+                         f"valve: {', '.join(VALVE_POSITIONS)}; keeping the previous commands")
+            return
         lo, hi = COMMAND_RANGES[name]
         if lo <= value <= hi:  # NaN and infinities fail the comparison
             self.commands = replace(self.commands, **{name: float(value)})
             return
-        # rejected: counted, logged at most every REJECT_LOG_PERIOD_S, the old value kept
+        self._reject(name, f"rejected {value!r}, expected a finite number from {lo:g} to "
+                     f"{hi:g}; keeping the previous value")
+
+    def _reject(self, name: str, text: str) -> None:
+        # counted, logged at most every REJECT_LOG_PERIOD_S per input; the old value is kept
         self.rejected[name] = self.rejected.get(name, 0) + 1
         now = self._clock.monotonic()
         if now >= self._next_reject_log.get(name, 0.0):
             self._next_reject_log[name] = now + REJECT_LOG_PERIOD_S
-            self._log.warning(
-                f"{self._labels.get(name, name)}: rejected {value!r}, expected a finite number "
-                f"from {lo:g} to {hi:g}; keeping the previous value ({self.rejected[name]} "
-                "rejected so far)")
+            self._log.warning(f"{self._labels.get(name, name)}: {text} "
+                              f"({self.rejected[name]} rejected so far)")
 
     def _reset(self, replacement=None, recording_of_run=None) -> tuple[bool, str]:
         rec, recording = self.recorder, ""
@@ -547,6 +559,7 @@ class PlantRunner:
         return True, (f"advanced {done} chunk(s) to t = {self.sim.time_s:.3f} s with "
                       f"emergency={str(c.emergency).lower()} "
                       f"brake_demand={c.brake_demand!r} traction={c.traction!r} "
+                      f"overcharge={str(c.overcharge).lower()} "
                       f"(inputs handled: {self.handled})")
 
     def _follow(self) -> None:

@@ -40,10 +40,13 @@ JOINT_STATE = "sensor_msgs/msg/JointState"
 #: positive].
 STATE_TOPICS = (("vehicles/state", "vehicle"), ("couplers/state", "coupler"))
 CLOCK_TOPIC = "/clock"
-#: Command topics: message type and the plant input each one sets.
+#: Command topics: message type and the plant input each one sets. ``driver_brake_valve``
+#: carries a position name of the driver's brake valve
+#: (:data:`~ltd_brake_ros.inputs.commands.VALVE_POSITIONS`).
 COMMAND_TOPICS = {"brake_command": ("std_msgs/msg/Bool", "emergency"),
                   "brake_demand": ("std_msgs/msg/Float64", "brake_demand"),
-                  "traction_command": ("std_msgs/msg/Float64", "traction")}
+                  "traction_command": ("std_msgs/msg/Float64", "traction"),
+                  "driver_brake_valve": ("std_msgs/msg/String", "driver_brake_valve")}
 #: Unit suffixes of :attr:`Snapshot.extras` keys, dropped from their topic names.
 UNIT_SUFFIXES = ("_Pa", "_N", "_m_s", "_m", "_s", "_kg", "_K", "_W", "_J")
 

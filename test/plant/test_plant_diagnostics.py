@@ -9,7 +9,8 @@ from ltd_brake_ros.plant.diagnostics import OK, WARN, PaceWindow
 KEYS = ["state", "sim_time_s", "real_time_factor", "achieved_real_time_factor", "chunks",
         "chunk_overruns", "emergency_command", "brake_command_time_s", "head_speed_kmh",
         "peak_draft_kN", "peak_draft_coupler", "peak_buff_kN", "peak_buff_coupler",
-        "couplers_beyond_lut", "brake_demand", "traction_command", "rejected_inputs",
+        "couplers_beyond_lut", "brake_demand", "traction_command", "overcharge_command",
+        "rejected_inputs",
         "inputs_handled", "resets", "recording", "verdicts", "verdict_draft_strength",
         "verdict_buff_strength", "verdict_endurable_lcf", "verdict_adhesion"]
 

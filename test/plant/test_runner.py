@@ -131,7 +131,7 @@ def test_lockstep_advances_exactly_the_chunks_asked_for_and_repeats_bit_for_bit(
     a, replies = lockstep_run(lambda call: 0.0)
     b, _ = lockstep_run(lambda call: 0.37 * (call % 3))  # other wall times between calls
     assert replies[0] == ("advanced 5 chunk(s) to t = 0.100 s with emergency=true "
-                          "brake_demand=0.0 traction=0.0 (inputs handled: 1)")
+                          "brake_demand=0.0 traction=0.0 overcharge=false (inputs handled: 1)")
     assert a.stamps_ns == b.stamps_ns == [k * CHUNK_NS for k in range(101)]
     for x, y in zip(snapshot_arrays(a.states), snapshot_arrays(b.states)):
         assert np.array_equal(x, y)
@@ -255,6 +255,33 @@ def test_inputs_are_checked_against_the_command_ranges_counted_and_logged_sparin
             status.values["emergency_command"]) == ("0.25", "-1", "true")
     with pytest.raises(KeyError, match="unknown input"):
         runner.receive("sand", 1.0)
+
+
+def test_driver_brake_valve_positions_set_the_commands_an_unknown_one_is_one_warning():
+    from ltd_brake_ros.inputs.commands import FIRST_STEP_DEMAND
+    from ltd_brake_ros.physics.brakes.base import EMERGENCY, OVERCHARGE, SERVICE
+
+    plant = make_plant(lockstep=True)
+    runner = plant.runner
+    expected = [("full_service", Commands(brake_demand=1.0), (1.0, SERVICE)),
+                ("lap", Commands(brake_demand=1.0), (1.0, SERVICE)),
+                ("service", Commands(brake_demand=FIRST_STEP_DEMAND),
+                 (FIRST_STEP_DEMAND, SERVICE)),
+                ("release_overcharge", Commands(overcharge=True), (0.0, OVERCHARGE)),
+                ("lap", Commands(overcharge=True), (0.0, OVERCHARGE)),
+                ("running", Commands(), (0.0, SERVICE)),
+                ("emergency", Commands(emergency=True), (1.0, EMERGENCY)),
+                ("brake", Commands(emergency=True), (1.0, EMERGENCY)),
+                ("running", Commands(), (0.0, SERVICE))]
+    for position, commands, level in expected:
+        runner.receive("driver_brake_valve", position, position)
+        assert plant.request(runner.step())[0]
+        assert (runner.commands, runner.sim.state.brake_command) == (commands, level), position
+    assert runner.handled == len(expected) and runner.rejected == {"driver_brake_valve": 1}
+    assert plant.log.at("warning") == [
+        "driver_brake_valve: rejected 'brake', expected a position of the driver's brake valve: "
+        "release_overcharge, running, lap, service, full_service, emergency; keeping the "
+        "previous commands (1 rejected so far)"]
 
 
 def test_jobs_run_between_chunks_a_failing_one_does_not_stop_the_plant():

@@ -24,7 +24,7 @@ from rosbags.rosbag2 import Reader as RosbagsReader
 from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Bool, Float64, Float64MultiArray
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 from std_srvs.srv import SetBool, Trigger
 
 from ltd_brake_ros.analysis.plots import write_plots
@@ -40,7 +40,8 @@ pytestmark = pytest.mark.ros
 TYPES = {**{t: "std_msgs/msg/Float64MultiArray" for t in ARRAY_TOPICS},
          **{t: "sensor_msgs/msg/JointState" for t in STATE_TOPICS},
          "clock": "rosgraph_msgs/msg/Clock", "brake_command": "std_msgs/msg/Bool",
-         "brake_demand": "std_msgs/msg/Float64", "traction_command": "std_msgs/msg/Float64"}
+         "brake_demand": "std_msgs/msg/Float64", "traction_command": "std_msgs/msg/Float64",
+         "driver_brake_valve": "std_msgs/msg/String"}
 #: A reader queue no run of these tests can fill: the probe keeps every message it gets.
 DEEP = 1_000_000
 
@@ -109,10 +110,10 @@ def test_recorded_run_round_trips_through_independent_readers_and_reports_like_o
                   "shutdown_after_stop_s:=1.0")
     _wait_until_heard(probe, ns, node, proc)
 
-    # inputs: two that change nothing (emergency overrides service demand) and one rejected;
-    # every received command is recorded, rejected or not
+    # inputs: three that change nothing (emergency overrides service demand; lap holds) and
+    # one rejected; every received command is recorded, rejected or not
     sent = [("brake_demand", Float64(data=0.0)), ("traction_command", Float64(data=0.0)),
-            ("brake_demand", Float64(data=math.nan))]
+            ("driver_brake_valve", String(data="lap")), ("brake_demand", Float64(data=math.nan))]
     for topic, msg in sent:
         probe.publish(f"{ns}/{topic}", msg)
     probe.spin_until(lambda: any(d.get("rejected_inputs") == "1" for d in diagnostics_of(
@@ -138,7 +139,8 @@ def test_recorded_run_round_trips_through_independent_readers_and_reports_like_o
     assert (folder / "metadata.yaml").is_file()
     expected_topics = {f"{ns}/{t}" for t in (*ARRAY_TOPICS, *STATE_TOPICS, "clock",
                                              "brake_command", "brake_demand",
-                                             "traction_command")} | {"/diagnostics"}
+                                             "traction_command", "driver_brake_valve")} \
+        | {"/diagnostics"}
     assert set(recorded) == expected_topics
     channels = {c.topic: c for c in summary.channels.values()}
     assert set(channels) == expected_topics
@@ -165,6 +167,8 @@ def test_recorded_run_round_trips_through_independent_readers_and_reports_like_o
     for short in ("brake_demand", "traction_command"):
         assert [repr(deserialize_message(d, Float64).data) for _, _, d in
                 recorded[f"{ns}/{short}"]] == [repr(m.data) for t, m in sent if t == short]
+    assert [deserialize_message(d, String).data for _, _, d in
+            recorded[f"{ns}/driver_brake_valve"]] == ["lap"]
 
     # --- what the subscriber received: byte-identical, in the recorded order
     for topic in (*ARRAY_TOPICS, "clock"):

@@ -400,7 +400,7 @@ def test_parameter_file_declares_every_parameter_with_its_default():
 def test_topics_qos_and_services_are_wired_as_documented(ros_context, clock):
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
     from sensor_msgs.msg import JointState
-    from std_msgs.msg import Float64
+    from std_msgs.msg import Float64, String
 
     from ltd_brake_ros.ros.sim_node import SimNode
 
@@ -418,7 +418,7 @@ def test_topics_qos_and_services_are_wired_as_documented(ros_context, clock):
         if clock == "publish":
             outputs["/clock"] = (Clock, 1)
         inputs = {"/wired/brake_command": Bool, "/wired/brake_demand": Float64,
-                  "/wired/traction_command": Float64}
+                  "/wired/traction_command": Float64, "/wired/driver_brake_valve": String}
         # rclpy's own /rosout and /parameter_events publishers are not the node's outputs
         publishers = {p.topic_name: p for p in node.publishers
                       if p.topic_name not in ("/rosout", "/parameter_events")}

@@ -1,0 +1,104 @@
+"""Overcharge and the driver's brake valve positions: commands, brake command events, scripts."""
+import numpy as np
+import pytest
+
+from ltd_brake_ros.inputs import InputError, consist_from_mapping, load_command_script
+from ltd_brake_ros.inputs.commands import FIRST_STEP_DEMAND, VALVE_POSITIONS, valve_position
+from ltd_brake_ros.physics.brakes.base import EMERGENCY, OVERCHARGE, SERVICE
+from ltd_brake_ros.simulator import Commands, Simulator
+
+
+def wagons(n=5):
+    return consist_from_mapping({"name": "t", "vehicles": [
+        {"type": "E402B"}, {"type": "Shimmns", "count": n, "mass_t": 80.0}]}, "<test>")
+
+
+def issued(sim):
+    """(level, kind) of every brake command event the simulator issued so far."""
+    ev = sim.state.events
+    return [(float(ev.level[k]), int(ev.kind[k])) for k in range(ev.count)]
+
+
+@pytest.mark.parametrize("value", ["yes", 1, None])
+def test_overcharge_must_be_a_bool(value):
+    with pytest.raises(ValueError, match="overcharge"):
+        Commands(overcharge=value)
+
+
+def test_overcharge_is_a_release_kind_only_when_released_and_a_change_of_it_is_a_command():
+    sim = Simulator(wagons(), 60.0)
+    sim.advance(0.5, Commands(brake_demand=0.5))
+    assert sim.state.brake_command == (0.5, SERVICE)
+    sim.advance(0.5, Commands(brake_demand=0.5, overcharge=True))  # braking: no overcharge
+    assert sim.state.brake_command == (0.5, SERVICE)
+    sim.advance(0.5, Commands(overcharge=True))
+    assert sim.state.brake_command == (0.0, OVERCHARGE)
+    sim.advance(0.5, Commands())  # only the flag changes: back to running pressure
+    assert sim.state.brake_command == (0.0, SERVICE)
+    sim.advance(0.5, Commands(emergency=True, overcharge=True))
+    assert sim.state.brake_command == (1.0, EMERGENCY)
+    # (events every vehicle has received are dropped)
+    assert issued(sim)[-3:] == [(0.0, OVERCHARGE), (0.0, SERVICE), (1.0, EMERGENCY)]
+
+
+def test_the_empirical_model_releases_with_overcharge_exactly_as_without():
+    runs = []
+    for overcharge in (False, True):
+        sim = Simulator(wagons(), 60.0)
+        sim.advance(6.0, Commands(brake_demand=0.6))
+        forces = [sim.advance(0.5, Commands(overcharge=overcharge)).brake_force_N
+                  for _ in range(20)]
+        runs.append(np.array(forces))
+    assert runs[0][0].sum() > 0.0 and runs[0][-1].sum() < 0.5 * runs[0][0].sum()  # releasing
+    np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_valve_positions_map_onto_the_commands():
+    c = Commands(brake_demand=0.7, traction=0.2)
+    applied = {name: Commands(**{**vars(c), **valve_position(name)}) for name in VALVE_POSITIONS}
+    assert applied["release_overcharge"] == Commands(traction=0.2, overcharge=True)
+    assert applied["running"] == Commands(traction=0.2)
+    assert applied["lap"] == c  # holds the present demand
+    assert applied["service"] == Commands(brake_demand=FIRST_STEP_DEMAND, traction=0.2)
+    assert applied["full_service"] == Commands(brake_demand=1.0, traction=0.2)
+    assert applied["emergency"] == Commands(emergency=True, brake_demand=0.7, traction=0.2)
+    # UIC 541-03 first step 0.4-0.5 bar of the 1.5 bar full service reduction (UIC 540)
+    assert 0.4 / 1.5 <= FIRST_STEP_DEMAND <= 0.5 / 1.5
+    assert valve_position(" Full_Service ") == VALVE_POSITIONS["full_service"]
+    assert valve_position("release") is None and valve_position(3) is None
+
+
+def write(tmp_path, text):
+    p = tmp_path / "script.yaml"
+    p.write_text(text)
+    return p
+
+
+def test_scripts_take_valve_positions_and_overcharge(tmp_path):
+    p = write(tmp_path, "commands:\n"
+                        "  - {t_s: 0, driver_brake_valve: service, traction: 0.0}\n"
+                        "  - {t_s: 5, driver_brake_valve: lap}\n"
+                        "  - {t_s: 9, driver_brake_valve: release_overcharge}\n"
+                        "  - {t_s: 20, overcharge: false}\n")
+    steps = load_command_script(p).steps
+    assert steps == ((0.0, {"emergency": False, "brake_demand": FIRST_STEP_DEMAND,
+                            "overcharge": False, "traction": 0.0}),
+                     (5.0, {}),
+                     (9.0, {"emergency": False, "brake_demand": 0.0, "overcharge": True}),
+                     (20.0, {"overcharge": False}))
+
+
+@pytest.mark.parametrize("entry,reason", [
+    ("{t_s: 0, driver_brake_valve: release}",
+     "commands[0].driver_brake_valve: unknown position 'release'; expected one of "
+     "release_overcharge, running, lap, service, full_service, emergency"),
+    ("{t_s: 0, driver_brake_valve: service, brake_demand: 0.5}",
+     "commands[0].driver_brake_valve: give either a valve position or brake_demand, not both"),
+    ("{t_s: 0, overcharge: 1}", "commands[0].overcharge: must be true or false"),
+])
+def test_a_bad_valve_entry_is_one_line_naming_the_field(tmp_path, entry, reason):
+    p = write(tmp_path, f"commands:\n  - {entry}\n")
+    with pytest.raises(InputError) as err:
+        load_command_script(p)
+    msg = str(err.value)
+    assert reason in msg and str(p) in msg and "\n" not in msg
