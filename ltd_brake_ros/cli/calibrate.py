@@ -6,12 +6,6 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..inputs import InputError
-from ..physics.brakes import DEFAULT_MODEL
-from ..physics.couplers import DEFAULT_MODEL as COUPLER_MODEL
-from ..recording.output import checked_output
-from ..studies.calibration import (UIC_SPEED_KMH, coupler_fit_parameters, fit_parameters,
-                                   parse_fit, parse_values, with_bounds)
 from .options import add_model_options, load_model, parse_scenarios, positive_int
 
 HELP = """\
@@ -75,9 +69,21 @@ def _rows(table) -> str:
 
 
 def _epilog() -> str:
+    from ..physics.brakes import DEFAULT_MODEL
+    from ..physics.couplers import DEFAULT_MODEL as COUPLER_MODEL
+    from ..studies.calibration import coupler_fit_parameters, fit_parameters
+
     return EPILOG.format(model=DEFAULT_MODEL, parameters=_rows(fit_parameters(DEFAULT_MODEL)),
                          coupler=COUPLER_MODEL,
                          coupler_parameters=_rows(coupler_fit_parameters(COUPLER_MODEL)))
+
+
+class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Fills in the parameter tables of :data:`EPILOG` when the help is shown: they come from
+    the brake and coupler models, which building the parser does not import."""
+
+    def add_text(self, text):
+        super().add_text(_epilog() if text is EPILOG else text)
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -85,7 +91,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "calibrate", help="fit brake parameters to UIC 544-1 or the paper's distances, "
                           "coupler parameters to the paper's peak forces",
-        description=HELP, epilog=_epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
+        description=HELP, epilog=EPILOG, formatter_class=_HelpFormatter)
     p.add_argument("--target", choices=("uic", "paper", "forces"), default="uic",
                    help="reference: uic (UIC 544-1 distances, 100 km/h only), paper "
                         "(LTDPoliTo distances) or forces (peak forces of Tables 1-2, coupler "
@@ -178,6 +184,9 @@ def command_line(args: argparse.Namespace, fit) -> str:
 
 def _write(path: str, text: str) -> None:
     """Write a parameter file; a full disk leaves no truncated file behind."""
+    from ..inputs import InputError
+    from ..recording.output import checked_output
+
     try:
         with checked_output(Path(path).expanduser(), encoding="utf-8") as fh:
             fh.write(text)
@@ -187,6 +196,8 @@ def _write(path: str, text: str) -> None:
 
 def _finish(args: argparse.Namespace, cal, file_text) -> int:
     """Print the warnings; write ``--out`` unless a fitted value sits on a bound."""
+    from ..inputs import InputError
+
     if cal.warnings:
         print()
         for w in cal.warnings:
@@ -226,11 +237,12 @@ def run_forces(args: argparse.Namespace) -> int:
     """``ltd-brake calibrate --target forces``: fit coupler parameters to the peak forces."""
     from dataclasses import replace
 
-    from ..inputs import load_scenarios
+    from ..inputs import InputError, load_scenarios
     from ..physics import couplers
     from ..studies.calibration import (DistanceEvaluator, calibrate_couplers, coupler_file_text,
                                        display_path, force_summary_lines, force_table,
-                                       limit_lines, snatch_trains)
+                                       limit_lines, parse_fit, parse_values, snatch_trains,
+                                       with_bounds)
 
     brake, lut = load_model(args)
     model = couplers.model_of(lut).NAME
@@ -297,11 +309,12 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from ..inputs import load_consist
+    from ..inputs import InputError, load_consist
     from ..physics.parameters import check
-    from ..studies.calibration import (DistanceEvaluator, build_targets, calibrate,
-                                       companion_rows, companion_table, display_path,
-                                       parameter_file_text, summary_lines, targets_table)
+    from ..studies.calibration import (UIC_SPEED_KMH, DistanceEvaluator, build_targets,
+                                       calibrate, companion_rows, companion_table, display_path,
+                                       parameter_file_text, parse_fit, parse_values,
+                                       summary_lines, targets_table, with_bounds)
 
     positive_int(args.max_nfev, "--max-nfev")
     positive_int(args.jobs, "--jobs")

@@ -8,19 +8,24 @@ that turns it, or an output that cannot be written (:class:`OSError`), into a li
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import sys
 
-from ..inputs import InputError
-from . import calibrate, campaign, recover, report, simulate, validate
 from .options import CONVENTIONS
 
-#: The verbs in the order ``ltd-brake --help`` lists them.
-VERBS = (simulate, validate, calibrate, report, recover, campaign)
+#: The verbs in the order ``ltd-brake --help`` lists them, each the module of its name.
+VERBS = ("simulate", "validate", "calibrate", "report", "recover", "campaign")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(verb: str | None = None) -> argparse.ArgumentParser:
     """The ``ltd-brake`` argument parser.
+
+    Parameters
+    ----------
+    verb : str, optional
+        Build only this verb's options (all a command line naming it can use); default, or a
+        name that is not a verb: every verb, as ``ltd-brake --help`` lists them.
 
     Returns
     -------
@@ -32,8 +37,14 @@ def build_parser() -> argparse.ArgumentParser:
                     "empirical UIC braked-weight air-brake model (Bosso, Magelli, Zampieri et al.).",
         epilog=CONVENTIONS, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for verb in VERBS:
-        verb.add_parser(sub)
+    if verb in VERBS:
+        modules = [importlib.import_module(f".{verb}", __package__)]
+    else:
+        from . import calibrate, campaign, recover, report, simulate, validate  # noqa: F401
+
+        modules = [sys.modules[f"{__package__}.{name}"] for name in VERBS]
+    for module in modules:
+        module.add_parser(sub)
     return parser
 
 
@@ -52,13 +63,18 @@ def main(argv: list[str] | None = None) -> int:
         failure, 130 interrupted, 141 the output was closed early (as a shell reports a writer
         ended by SIGPIPE).
     """
-    from ..simulator import SimulationError
-
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else argv
+    # a command line starting with a verb builds that verb alone: the others' options (and the
+    # modules their help names) cost start-up time and cannot appear on it
+    parser = build_parser(argv[0] if argv else None)
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    # after parsing: --help and usage errors need neither the inputs nor the physics
+    from ..inputs import InputError
+    from ..simulator import SimulationError
+
     try:
         status = args.func(args)
         sys.stdout.flush()  # an output that cannot be written is reported here, not at exit

@@ -1,9 +1,11 @@
-"""Options several verbs share: the model files, the run specification, scenario lists."""
+"""Options several verbs share: the model files, the run specification, scenario lists.
+
+Building a parser imports nothing else of the package (``ltd-brake --help`` stays quick); the
+inputs and the physics are imported when a verb runs.
+"""
 from __future__ import annotations
 
 import argparse
-
-from ..inputs import InputError
 
 CONVENTIONS = """\
 units and signs:
@@ -100,6 +102,7 @@ def run_spec(args: argparse.Namespace):
     InputError
         A bad file (naming the file and field) or a bad option (naming the option).
     """
+    from ..inputs import InputError
     from ..run_spec import RunSpecError, resolve_run_spec
 
     try:
@@ -133,6 +136,8 @@ def parse_scenarios(text: str, option: str = "--scenarios") -> list[int]:
     InputError
         Not numbers and ranges, a range that runs backwards, or nothing at all.
     """
+    from ..inputs import InputError
+
     out: list[int] = []
     for part in text.split(","):
         part = part.strip()
@@ -173,5 +178,7 @@ def positive_int(value: int | None, option: str) -> int | None:
         ``value`` is below 1.
     """
     if value is not None and value < 1:
+        from ..inputs import InputError
+
         raise InputError("command line", option, f"must be at least 1, got {value}")
     return value

@@ -3,8 +3,6 @@ from __future__ import annotations
 
 import argparse
 
-from ..inputs import InputError
-
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Add the ``recover`` verb to ``ltd-brake`` (the verb contract: :mod:`ltd_brake_ros.cli`)."""
@@ -27,6 +25,7 @@ def run(args: argparse.Namespace) -> int:
         The source is not a readable recording, the destination holds a bag, or it cannot be
         written (nothing half-written is left there).
     """
+    from ..inputs import InputError
     from ..recording.reader import BagError
     from ..recording.recover import default_recover_destination, recover
 

@@ -5,7 +5,6 @@ import argparse
 import json
 from pathlib import Path
 
-from ..inputs import InputError
 from .options import CONVENTIONS
 
 DESCRIPTION = """\
@@ -50,6 +49,7 @@ def run(args: argparse.Namespace) -> int:
     from ..analysis.export import write_csv
     from ..analysis.plots import write_plots
     from ..analysis.report import analyse
+    from ..inputs import InputError
     from ..recording.reader import BagError
 
     run_path = Path(args.run)

@@ -4,7 +4,6 @@ from __future__ import annotations
 import argparse
 import json
 
-from ..inputs import InputError
 from .options import CONVENTIONS, add_run_spec_options, run_spec
 
 
@@ -47,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     """Run one emergency stop (or the ``--commands`` script) and print its summary."""
     import time
 
-    from ..inputs import CommandScript
+    from ..inputs import CommandScript, InputError
     from ..simulator import SimulationError
     from ..studies.runs import scripted_run, summarize
 
@@ -257,6 +256,7 @@ class _Recording:
             return self
         import logging
 
+        from ..inputs import InputError
         from ..plant.recorder import Recorder
         from ..plant.settings import StartupError
         from ..recording.metadata import run_metadata
@@ -314,5 +314,7 @@ class _Recording:
             return
         self._rec.close()
         if self._rec.error:
+            from ..inputs import InputError
+
             raise InputError("command line", "--record", f"recording {self._folder} failed: "
                              f"{self._rec.error}")

@@ -76,3 +76,27 @@ def test_help_teaches_units_and_signs(capsys, verb):
     for words in ("km/h", "SI (m, s, N)", "coupler 1 is the coupler behind the head",
                   "draft\n  (tension) forces are positive, buff (compression) forces negative"):
         assert words in text
+
+
+def test_a_verbs_help_needs_no_physics():
+    # a verb's --help and usage errors come from its own options alone: they must not wait
+    # for the compiled physics (numba) to import
+    code = ("import sys\nfrom ltd_brake_ros.cli.main import main\n"
+            "try:\n    main(['simulate', '--help'])\nexcept SystemExit as exc:\n"
+            "    assert exc.code == 0\n"
+            "print(sorted(m for m in ('numba', 'ltd_brake_ros.physics', 'ltd_brake_ros.inputs')"
+            " if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, timeout=120).stdout
+    assert "--scenario" in out and out.splitlines()[-1] == "[]"
+
+
+@pytest.mark.parametrize("argv", [["simulate", "--scenario", "6", "--json", "--step-s", "0.02"],
+                                  ["calibrate", "--target", "paper", "--fit", "k0"],
+                                  ["campaign", "run", "x.yaml", "--out", "d"]])
+def test_a_verb_parses_alone_as_among_all(argv):
+    from ltd_brake_ros.cli.main import build_parser
+
+    alone = vars(build_parser(argv[0]).parse_args(argv))
+    among_all = vars(build_parser().parse_args(argv))
+    assert alone == among_all and alone["func"].__module__.endswith(argv[0])
