@@ -23,13 +23,23 @@ try:  # pragma: no cover - exercised implicitly
         """
         return njit(cache=True, nogil=True, inline="always")(fn)
 
+    def jit_step(fn):
+        """Compile ``fn`` with numba without reference counting of its arrays.
+
+        For the integration step's functions, which allocate nothing and are called several
+        times per step with bundles of arrays: numba would otherwise count a reference to
+        every array passed in and out of each call (an atomic operation each), which costs
+        more than the arithmetic of a short train. Such a function must not create arrays.
+        """
+        return njit(cache=True, nogil=True, _nrt=False)(fn)
+
     HAVE_NUMBA = True
 except ImportError:  # pragma: no cover - fallback keeps the package usable, only slower
     def jit(fn):
         """No-op stand-in for the numba decorator."""
         return fn
 
-    jit_inline = jit
+    jit_inline = jit_step = jit
 
     HAVE_NUMBA = False
 

@@ -42,7 +42,8 @@ import numpy as np
 from . import brakes, couplers
 from .brakes import friction
 from .constants import KMH_PER_MS
-from .equations import HAVE_NUMBA, jit, jit_inline, lut_segment, resistance_coefficients
+from .equations import (HAVE_NUMBA, jit, jit_inline, jit_step, lut_segment,
+                        resistance_coefficients)
 
 #: Kernel return codes.
 OK, NEWTON_FAILED, STOPPED, NOT_FINITE = 0, 1, 2, 3
@@ -317,7 +318,7 @@ class _Work(NamedTuple):
     fair: np.ndarray
 
 
-@jit
+@jit_step
 def advance_traction(h, cmd, v, ftr, tr):
     """Advance the applied traction/dynamic-brake force of powered vehicles (in place).
 
@@ -357,7 +358,7 @@ def advance_traction(h, cmd, v, ftr, tr):
         ftr[i] += change
 
 
-@jit
+@jit_step
 def track_forces(x, train, track, fgrade, rcurve):
     """Gradient force and curve resistance of each vehicle at its own chainage (in place).
 
@@ -400,7 +401,7 @@ def _retarding(i, speed, res_a, rcurve, resist, kind, fa_scale):
 FAST_ITERATIONS = 4
 
 
-@jit
+@jit_step
 def _slope(step, u, du, ut, s, cp, fr_arrays, trial):
     """Directional derivative g(u + step*du) . du of the step's potential."""
     for i in range(u.shape[0]):
@@ -413,7 +414,7 @@ def _slope(step, u, du, ut, s, cp, fr_arrays, trial):
     return acc
 
 
-@jit
+@jit_step
 def _line_search(u, du, ut, s, cp, fr_arrays, trial):
     """Step length minimising the step's convex potential along du (root of its slope).
 
@@ -448,7 +449,7 @@ def _line_search(u, du, ut, s, cp, fr_arrays, trial):
     return lo if lo > 0.0 else hi
 
 
-@jit
+@jit_step
 def _residual(u, s, cp, fr_arrays, w):
     """Residual g(u) of the implicit step and the pieces of its Jacobian (into ``w``).
 
@@ -496,7 +497,7 @@ def _residual(u, s, cp, fr_arrays, w):
     return converged
 
 
-@jit
+@jit_step
 def _all_finite(a):
     """True when every element of ``a`` is finite."""
     for value in a:
@@ -505,7 +506,7 @@ def _all_finite(a):
     return True
 
 
-@jit
+@jit_step
 def _solve_tridiagonal(dvec, cj, g, dwork, du):
     """Solve J du = -g, J = diag(dvec) + sum over couplers of cj * (e_j - e_j+1)(e_j - e_j+1)^T.
 
@@ -823,7 +824,7 @@ class _Scratch(NamedTuple):
     trial: _Work
 
 
-@jit
+@jit_step
 def _newton(u, s, cp, fr_arrays, w, scratch, max_iter, stats):
     """Solve the step's equations for the new speeds ``u`` (in place) by Newton's method.
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..equations import jit
+from ..equations import jit, jit_step
 from ..parameters import Fittable, parameter
 from .base import EMERGENCY, BrakeArrays, released_state, vent_delay_s
 
@@ -132,13 +132,13 @@ def initial_state(arrays: BrakeArrays):
     return released_state(arrays.delay_s.shape[0])
 
 
-@jit
+@jit_step
 def _relax(force, target, dt, tau_apply, tau_release):
     tau = tau_apply if target > force else tau_release
     return target + (force - target) * math.exp(-dt / tau)
 
 
-@jit
+@jit_step
 def advance(arrays, state, events, t0, t1):
     """Advance every vehicle's block force exactly from t0 to t1 [s] (state updated in place).
 
