@@ -6,6 +6,7 @@ units. Bad input raises :class:`InputError` naming the file, the field path and 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import os
 import re
@@ -57,7 +58,7 @@ def config_dir() -> Path:
     candidates = []
     if os.environ.get("LTD_BRAKE_CONFIG"):
         candidates.append(Path(os.environ["LTD_BRAKE_CONFIG"]))
-    candidates.append(Path(__file__).resolve().parents[2] / "config")
+    candidates.append(_checkout_config())
     candidates.append(Path(sys.prefix) / "share" / "ltd_brake_ros" / "config")
     for path in candidates:
         if (path / "scenarios.yaml").is_file():
@@ -71,6 +72,12 @@ def config_dir() -> Path:
     except Exception:  # noqa: BLE001 - ament index absent or package not registered
         pass
     raise InputError("config", "", "cannot find the shipped config/ directory; set LTD_BRAKE_CONFIG")
+
+
+@functools.lru_cache(maxsize=1)
+def _checkout_config() -> Path:
+    """``config/`` of the source checkout this module lies in (whether or not it exists)."""
+    return Path(__file__).resolve().parents[2] / "config"
 
 
 def resolve_config_path(path: str | os.PathLike, base: Path | None = None) -> Path:
@@ -147,6 +154,9 @@ def load_yaml(path: str | os.PathLike) -> Any:
         text = raw.decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(p, "", f"cannot read: {exc}") from None
+    data = _load_plain(text)
+    if data is not _NOT_PLAIN:
+        return data
     loader = _Loader(text)
     try:
         return loader.get_single_data()
@@ -199,12 +209,14 @@ _BOOL = re.compile(r"(?:true|True|TRUE|false|False|FALSE)\Z")
 _NULL = re.compile(r"(?:~|null|Null|NULL|)\Z")
 _TAG = "tag:yaml.org,2002:"
 
-try:  # libyaml parses about three times faster; the composer below is Python either way
+try:  # libyaml parses about three times faster (and composes, see _load_plain)
     from yaml._yaml import CParser as _Parser
 
     def _init_parser(loader, text):
         _Parser.__init__(loader, text)
+    _CParser = _Parser
 except ImportError:  # pragma: no cover - PyYAML built without libyaml
+    _CParser = None
     from yaml.parser import Parser as _PyParser
     from yaml.reader import Reader
     from yaml.scanner import Scanner
@@ -216,6 +228,27 @@ except ImportError:  # pragma: no cover - PyYAML built without libyaml
         Reader.__init__(loader, text)
         Scanner.__init__(loader)
         _PyParser.__init__(loader)
+
+
+def _decimal_int(text: str) -> int:
+    """A whole number written in decimal (ValueError otherwise, or beyond Python's digits)."""
+    if not _INT.fullmatch(text):
+        raise ValueError(text)
+    return int(text, 10)
+
+
+def _decimal_float(text: str) -> Any:
+    """A number written in decimal, .inf or .nan (ValueError otherwise)."""
+    if not _FLOAT.fullmatch(text):
+        raise ValueError(text)
+    return decimal_or_text(text)
+
+
+def _core_bool(text: str) -> bool:
+    """true or false (ValueError otherwise)."""
+    if not _BOOL.fullmatch(text):
+        raise ValueError(text)
+    return text.lower() == "true"
 
 
 class _Loader(_Parser, Composer, SafeConstructor, BaseResolver):
@@ -295,32 +328,26 @@ class _Loader(_Parser, Composer, SafeConstructor, BaseResolver):
             seen[same] = key
         return node
 
+    def _scalar(self, node, read, what: str):
+        """The value ``read`` makes of a scalar's text, or the error naming ``what``."""
+        value = self.construct_scalar(node)
+        try:
+            return read(value)
+        except ValueError:
+            raise ConstructorError(None, None, f"cannot read {value!r} as {what}",
+                                   node.start_mark) from None
+
     def construct_decimal_int(self, node):
         """A whole number written in decimal."""
-        value = self.construct_scalar(node)
-        if _INT.fullmatch(value):
-            try:
-                return int(value, 10)
-            except ValueError:  # more digits than Python converts
-                pass
-        raise ConstructorError(None, None, f"cannot read {value!r} as a decimal whole number",
-                               node.start_mark)
+        return self._scalar(node, _decimal_int, "a decimal whole number")
 
     def construct_decimal_float(self, node):
         """A number written in decimal, .inf or .nan."""
-        value = self.construct_scalar(node)
-        if _FLOAT.fullmatch(value):
-            return decimal_or_text(value)
-        raise ConstructorError(None, None, f"cannot read {value!r} as a decimal number",
-                               node.start_mark)
+        return self._scalar(node, _decimal_float, "a decimal number")
 
     def construct_core_bool(self, node):
         """true or false."""
-        value = self.construct_scalar(node)
-        if _BOOL.fullmatch(value):
-            return value.lower() == "true"
-        raise ConstructorError(None, None, f"cannot read {value!r} as true or false",
-                               node.start_mark)
+        return self._scalar(node, _core_bool, "true or false")
 
 
 def _key_value(node) -> Any:
@@ -352,6 +379,100 @@ for _tag, _constructor in (
         ("float", _Loader.construct_decimal_float)):
     _Loader.add_constructor(_TAG + _tag, _constructor)
 _Loader.add_constructor(None, SafeConstructor.construct_undefined)
+
+
+#: Most structure indicators (``[{-:?``, each able to open one level) in a text that libyaml's
+#: composer may read: it recurses in C without a bound, about 0.5 kB of stack a level.
+_C_COMPOSER_INDICATORS = 1000
+#: What :func:`_load_plain` returns for a document that :class:`_Loader` must read.
+_NOT_PLAIN = object()
+
+
+def _load_plain(text: str) -> Any:
+    """A plain document read by libyaml's composer, else :data:`_NOT_PLAIN`.
+
+    Plain: shallow enough for the C composer (:data:`_C_COMPOSER_INDICATORS`), valid YAML, a
+    tree (no alias to a list or mapping), within :data:`MAX_DEPTH` and :data:`MAX_NODES`, with
+    text, number, boolean or null keys given once per mapping, and only the tags of the core
+    schema. Such a document composes into the nodes the Python composer of :class:`_Loader`
+    builds (the same parser events and resolver), none of whose refusals apply, and
+    :func:`_plain_data` builds from them what :class:`_Loader`'s constructors build; anything
+    else, error or doubt, is left to :class:`_Loader`, which reads it (or words the error) as
+    always.
+    """
+    if _CParser is None or sum(map(text.count, "[{-:?")) > _C_COMPOSER_INDICATORS:
+        return _NOT_PLAIN
+    loader = _PlainLoader(text)
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        return _plain_data(node) if _plain_tree(node) else _NOT_PLAIN
+    except Exception:  # noqa: BLE001 - _Loader reads it again and words the error
+        return _NOT_PLAIN
+    finally:
+        loader.dispose()
+
+
+def _plain_tree(root) -> bool:
+    """True when a composed document is one that :class:`_Loader` composes without refusal
+    (see :func:`_load_plain`)."""
+    seen: set[int] = set()  # collections met, to find one reached twice (an alias)
+    stack = [(root, 1)]  # node, depth (the root's is 1)
+    count = 0
+    while stack:
+        node, depth = stack.pop()
+        count += 1
+        if depth > MAX_DEPTH + 1 or count > MAX_NODES:
+            return False
+        if isinstance(node, ScalarNode):
+            continue
+        if id(node) in seen:
+            return False
+        seen.add(id(node))
+        if isinstance(node, SequenceNode):
+            stack.extend((item, depth + 1) for item in node.value)
+            continue
+        keys = set()
+        for key, value in node.value:
+            if not isinstance(key, ScalarNode):
+                return False
+            same = (key.tag, _key_value(key))
+            if same in keys:
+                return False
+            keys.add(same)
+            stack.append((key, depth + 1))
+            stack.append((value, depth + 1))
+    return True
+
+
+def _plain_data(node) -> Any:
+    """The data of a node of a plain tree (see :func:`_load_plain`), as :class:`_Loader`'s
+    constructors build it; raises for a value they refuse."""
+    if isinstance(node, ScalarNode):
+        return _PLAIN_SCALARS[node.tag](node.value)
+    if node.tag == _TAG + "seq":
+        return [_plain_data(item) for item in node.value]
+    if node.tag == _TAG + "map":
+        return {_plain_data(key): _plain_data(value) for key, value in node.value}
+    raise KeyError(node.tag)
+
+
+#: Value of a scalar of each core-schema tag.
+_PLAIN_SCALARS = {_TAG + "str": str, _TAG + "null": lambda text: None,
+                  _TAG + "bool": _core_bool, _TAG + "int": _decimal_int,
+                  _TAG + "float": _decimal_float}
+
+if _CParser is not None:
+    class _PlainLoader(_CParser, BaseResolver):
+        """libyaml's parser and composer with the resolvers of :class:`_Loader` (see
+        :func:`_load_plain`)."""
+
+        yaml_implicit_resolvers = _Loader.yaml_implicit_resolvers
+
+        def __init__(self, text: str):
+            _CParser.__init__(self, text)
+            BaseResolver.__init__(self)
 
 
 # --------------------------------------------------------------------------- field readers

@@ -9,7 +9,6 @@ from ..inputs import (BrakeParams, CommandScript, Consist, CouplerLUT, Scenario,
                      load_brake_params, load_coupler_lut, load_scenarios)
 from ..physics.kernel import DEFAULT_TOLERANCE_M_S
 from ..simulator import Commands, CouplerExcursions, SimulationError, Simulator, Snapshot
-from .parallel import map_jobs
 
 
 class Progress(NamedTuple):
@@ -264,6 +263,8 @@ def validate(params: BrakeParams | None = None, lut: CouplerLUT | None = None,
     -------
     list of ValidationRow
     """
+    from .parallel import map_jobs  # process pools: not needed by a single run
+
     params = params or load_brake_params()
     lut = lut or load_coupler_lut()
     catalogue = load_scenarios()
