@@ -28,7 +28,8 @@ import numpy as np
 
 from ..inputs import BrakeParams, InputError, consist_from_mapping
 from ..physics import brakes
-from ..physics.brakes import EMERGENCY, SERVICE, CommandEvents, friction, uic_pipe
+from ..physics.brakes import (EMERGENCY, SERVICE, CommandEvents, friction, uic_empirical,
+                               uic_pipe)
 from ..physics.equations import centre_offsets_m
 
 #: The shipped parameter file of the model.
@@ -100,6 +101,7 @@ def brake_history(consist, params: uic_pipe.Params,
     ----------
     consist : Consist
     params : uic_pipe.Params
+        Or another brake model's ``Params`` (its pressures are then NaN).
     commands : sequence of (time [s], level, kind)
         Brake commands (``kind`` :data:`EMERGENCY` or :data:`SERVICE`), in time order.
     end_s : float
@@ -111,9 +113,10 @@ def brake_history(consist, params: uic_pipe.Params,
     -------
     History
     """
+    model = brakes.model_of(params)
     fr = friction.compile(consist, friction.Params())
-    arrays = uic_pipe.compile(consist, params, fr.force_max_N)
-    state = uic_pipe.initial_state(arrays)
+    arrays = model.compile(consist, params, fr.force_max_N)
+    state = model.initial_state(arrays)
     events = CommandEvents.empty()
     for t, level, kind in commands:
         events = events.appended(float(t), float(level), int(kind), 0)
@@ -123,9 +126,9 @@ def brake_history(consist, params: uic_pipe.Params,
     for k, t in enumerate(times):
         if k:
             brakes.advance(arrays, state, events, times[k - 1], t)
-        extras = uic_pipe.snapshot_extras(arrays, state)
-        pipe[k] = extras["brake_pipe_pressure_Pa"]
-        cyl[k] = extras["brake_cylinder_pressure_Pa"]
+        extras = model.snapshot_extras(arrays, state)
+        pipe[k] = extras.get("brake_pipe_pressure_Pa", np.nan)
+        cyl[k] = extras.get("brake_cylinder_pressure_Pa", np.nan)
         force[k] = state.force_N
     centre = centre_offsets_m(np.array([v.length_m for v in consist.vehicles]))
     vent = int(getattr(consist, "venting_vehicle", 0))
@@ -189,7 +192,15 @@ def equivalent_build_up_s(length_m: float, position: str,
                           params: uic_pipe.Params | None = None) -> float:
     """Equivalent brake build-up time of a whole train after an emergency command [s].
 
-    T_e = integral over t of (1 - F(t) / F_full), F the sum of the block forces.
+    T_e = integral over t of (1 - F(t) / F_full), F the sum of the block forces, timed from
+    the command at the driver's brake valve (its ``valve_delay_s`` included), as ETCS times it.
+
+    Parameters
+    ----------
+    length_m : float
+    position : {"P", "G"}
+    params : uic_pipe.Params, optional
+        Or another brake model's ``Params`` (``uic_empirical.Params()``: the paper's model).
     """
     params = params or uic_pipe.Params()
     end = 60.0 if position == "P" else 120.0
@@ -321,14 +332,17 @@ def report(params: uic_pipe.Params | None = None) -> str:
         lines.append(f"| {pos} | {fill:.1f} | {wf[0]:g}-{wf[1]:g} | {rel:.1f} "
                      f"| {wr[0]:g}-{wr[1]:g} |")
     lines += ["", "Equivalent emergency build-up time of the train, ours beside the ETCS "
-              "conversion model (SUBSET-026 A.3.8)", "",
-              "| length m | P ours s | P ETCS s | P ratio | G ours s | G ETCS s | G ratio |",
-              "|---|---|---|---|---|---|---|"]
+              "conversion model (SUBSET-026 A.3.8) and the paper's empirical model", "",
+              "| length m | P ours s | P empirical s | P ETCS s | P ours/ETCS | P empirical/ETCS "
+              "| G ours s | G empirical s | G ETCS s | G ours/ETCS | G empirical/ETCS |",
+              "|---|---|---|---|---|---|---|---|---|---|---|"]
+    empirical = uic_empirical.Params()
     for length in LENGTHS_M:
         row = f"| {length:.0f} "
         for pos in ("P", "G"):
             ours, etcs = equivalent_build_up_s(length, pos, params), etcs_build_up_s(length, pos)
-            row += f"| {ours:.1f} | {etcs:.1f} | {ours / etcs:.2f} "
+            emp = equivalent_build_up_s(length, pos, empirical)
+            row += f"| {ours:.1f} | {emp:.1f} | {etcs:.1f} | {ours / etcs:.2f} | {emp / etcs:.2f} "
         lines.append(row + "|")
     sc = service_cycle(500.0, "P", params)
     lines += ["", "Service cycle, 500 m train in P (first step at 0 s, demand 0.5 at 30 s, full "

@@ -128,3 +128,32 @@ def test_radio_distributed_power_brakes_the_rear_sooner():
     assert head_only[-1] - head_only[0] > 2.5
     assert onset[:31] == pytest.approx(head_only[:31], abs=0.02)  # the front half as before
     assert np.all(onset <= head_only + 1e-9)
+
+
+def test_emergency_build_up_grows_faster_than_linearly_and_stays_below_etcs():
+    # after the accelerators' local drop the pipe empties towards the head's emergency orifice,
+    # a diffusive process (time ~ L^2): the build-up time grows faster than linearly with
+    # length, as the ETCS conversion model's quadratic does; ETCS is a conservative bound
+    te = {length: bpv.equivalent_build_up_s(length, "P", PARAMS)
+          for length in (300.0, 900.0, 1500.0)}
+    assert te[1500.0] - te[900.0] > 1.2 * (te[900.0] - te[300.0])
+    for length, value in te.items():
+        assert value < bpv.etcs_build_up_s(length, "P")
+    # and slower than the paper's empirical model (a drop travelling at 200 m/s) on long trains
+    from ltd_brake_ros.physics.brakes import uic_empirical
+
+    assert te[1500.0] > 1.5 * bpv.equivalent_build_up_s(1500.0, "P", uic_empirical.Params())
+
+
+def test_empirical_build_up_time_is_its_mean_delay_plus_time_constant():
+    # F_i = F_full,i (1 - exp(-(t - d_i) / tau)) gives T_e = sum F_i (d_i + tau) / sum F_i
+    from ltd_brake_ros.physics.brakes import friction, uic_empirical
+
+    params = uic_empirical.Params()
+    consist = bpv.train(bpv.wagons_for_length(500.0), "P")
+    arrays = uic_empirical.compile(consist, params, friction.compile(consist,
+                                                                     friction.Params()).force_max_N)
+    w = arrays.force_max_N / arrays.force_max_N.sum()
+    expected = float(np.sum(w * arrays.delay_s)) + params.t_fill_s / np.log(20.0)
+    # the trapezoid on a 10 ms grid and the 60 s horizon: within a few ms
+    assert bpv.equivalent_build_up_s(500.0, "P", params) == pytest.approx(expected, abs=0.02)

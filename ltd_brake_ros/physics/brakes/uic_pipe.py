@@ -33,7 +33,10 @@ quick-service chamber that draws air from the pipe at the start (application str
 pipe drop, 3.8 bar at 1.5 bar, with a play hysteresis between application and release
 (graduated application and release), P/G filling rates and release time constants, the
 auxiliary reservoir emptying polytropically into the cylinder, and an accelerator that vents
-the pipe locally when the pipe falls faster than its reference chamber can follow. Empty/loaded
+the pipe into its acceleration chamber when the pipe falls faster than its reference chamber
+can follow: a local drop of a few tenths of a bar that carries an emergency along the train;
+the rest of the drop flows along the pipe to the emergency orifice of the driver's brake valve
+(diffusive: its time grows as the square of the distance). Empty/loaded
 changes the full block force through the braked weight (Eq. 4), not the cylinder pressure.
 Block force = full block force x cylinder pressure / maximum cylinder pressure.
 
@@ -86,7 +89,7 @@ S_P_RUN, S_P_MR, S_A_FEED, S_A_VENT, S_A_EMERG, S_BAND = 12, 13, 14, 15, 16, 17
 S_FIRST_STEP, S_FULL_SERVICE, S_ER_DOWN, S_ER_UP, S_VENT = 18, 19, 20, 21, 22
 S_THETA_APP, S_CR_TAU, S_P_CMAX, S_DP_FULL, S_HYST, S_THETA_REL = 23, 24, 25, 26, 27, 28
 S_P_INSHOT, S_INSHOT_RATE, S_A_AUX, S_V_AUX, S_V_CYL, S_N_POLY = 29, 30, 31, 32, 33, 34
-S_A_QS, S_V_QS, S_ACC_ON, S_ACC_THETA, S_ACC_TAU, S_A_ACC, S_ACC_CLOSE = (35, 36, 37, 38, 39,
+S_A_QS, S_V_QS, S_ACC_ON, S_ACC_THETA, S_ACC_TAU, S_A_ACC, S_V_ACC = (35, 36, 37, 38, 39,
                                                                            40, 41)
 S_SUPPLY_BAND = 42
 # ---- per vehicle (continued)
@@ -108,7 +111,7 @@ X_CYL = 4  # brake cylinder, gauge [Pa]
 X_TARGET = 5  # target cylinder pressure of the distributor, gauge [Pa]
 X_APPLIED = 6  # 1: the distributor is in application
 X_REF = 7  # accelerator reference chamber, absolute [Pa]
-X_ACC = 8  # accelerator: 0 armed, 1 venting, 2 spent
+X_ACC = 8  # accelerator: 0 armed, 1 venting into its chamber, 2 spent
 X_QS = 9  # quick-service chamber, absolute [Pa]
 X_QS_STATE = 10  # quick service: 0 armed, 1 drawing, 2 done
 X_GRID = 11  # row 0: index of the grid point reached (-1: none yet)
@@ -116,7 +119,8 @@ X_ER = 12  # equalising reservoir of the vehicle's driver's brake valve, absolut
 X_T_ACT = 13  # when the current command reached the vehicle's driver's brake valve [s]
 X_MODE = 14  # position of the vehicle's driver's brake valve in the current step
 X_EM_OPEN = 15  # opening of its emergency orifice in the current step [-]
-N_EXTRA = 16
+X_ACC_P = 16  # acceleration chamber, absolute [Pa]
+N_EXTRA = 17
 
 # driver's brake valve positions
 _RELEASE, _SERVICE, _EMERGENCY = 0, 1, 2
@@ -152,7 +156,7 @@ class Params:
     pipe_step_s: float = parameter(0.005, "internal step of the pipe on its fixed time grid "
                                    "(numerical) [s]", lo=1e-4, hi=0.05)
     # --- driver's brake valve
-    valve_delay_s: float = parameter(1.26, "delay from a command to the driver's brake valve "
+    valve_delay_s: float = parameter(1.12, "delay from a command to the driver's brake valve "
                                      "acting on the pipe (fitted to the LTDPoliTo distances of "
                                      "Tables 1-2) [s]", lo=0.0, hi=5.0)
     running_pressure_Pa: float = parameter(5.0 * BAR, "brake-pipe running pressure (UIC 540) "
@@ -261,7 +265,7 @@ class Params:
                                                lo=1e-5, hi=0.05)
     acceleration_chambers: bool = parameter(True, "distributors vent the pipe locally on an "
                                             "emergency drop (UIC 540 emergency accelerator)")
-    accelerator_threshold_Pa: float = parameter(0.34 * BAR, "excess of the accelerator's "
+    accelerator_threshold_Pa: float = parameter(0.25 * BAR, "excess of the accelerator's "
                                                 "reference chamber over the pipe that opens it "
                                                 "(fitted) [bar]",
                                                 key="accelerator_threshold_bar", scale=BAR,
@@ -271,10 +275,10 @@ class Params:
                                                    "open it; fitted) [s]", lo=0.001, hi=10.0)
     accelerator_area_m2: float = parameter(2e-4, "effective area of the accelerator's vent "
                                            "(fitted) [m2]", lo=0.0, hi=1e-2)
-    accelerator_close_Pa: float = parameter(1.0 * BAR, "pipe pressure below which the "
-                                            "accelerator closes (fitted) [bar]",
-                                            key="accelerator_close_bar", scale=BAR,
-                                            lo=0.0, hi=4.0)
+    accelerator_chamber_volume_m3: float = parameter(0.001, "acceleration chamber the "
+                                                     "accelerator vents the pipe into, at "
+                                                     "atmospheric pressure when charged "
+                                                     "(fitted) [m3]", lo=1e-5, hi=0.05)
 
 
 #: Parameters calibration may fit, by short name.
@@ -341,7 +345,7 @@ def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  #
         S_N_POLY: p.aux_polytropic_index, S_A_QS: p.quick_service_area_m2,
         S_V_QS: p.quick_service_volume_m3, S_ACC_ON: 1.0 if p.acceleration_chambers else 0.0,
         S_ACC_THETA: p.accelerator_threshold_Pa, S_ACC_TAU: p.accelerator_time_constant_s,
-        S_A_ACC: p.accelerator_area_m2, S_ACC_CLOSE: P_ATM + p.accelerator_close_Pa,
+        S_A_ACC: p.accelerator_area_m2, S_V_ACC: p.accelerator_chamber_volume_m3,
         S_SUPPLY_BAND: p.supply_band_Pa, S_VALVE_DELAY: p.valve_delay_s,
         S_EM_OPEN: p.emergency_opening_s,
     }
@@ -369,6 +373,7 @@ def initial_state(arrays: BrakeArrays) -> BrakeState:
     for col in (X_P, X_CR, X_AUX, X_REF, X_ER):
         extra[:, col] = p_run
     extra[:, X_QS] = P_ATM
+    extra[:, X_ACC_P] = P_ATM
     extra[:, X_GRID] = -1.0
     extra[:, X_T_ACT] = -1e9  # long before any command
     return BrakeState(np.zeros(n), np.zeros(n), np.zeros(n, np.int64), np.zeros(n, np.int64),
@@ -451,7 +456,7 @@ def _distributor_branch(i, p, coef, extra):
     q = 0.0
     dq = 0.0
     if extra[i, X_ACC] == 1.0:
-        m, d, _ = orifice(p, P_ATM, coef[0, S_A_ACC])
+        m, d, _ = orifice(p, extra[i, X_ACC_P], coef[0, S_A_ACC])
         q += m
         dq += d
     if extra[i, X_QS_STATE] == 1.0:
@@ -524,6 +529,19 @@ def _pipe_step(coef, extra, dt, a, b, c, rhs, work):
         rhs[i] = (rhs[i] - c[i] * rhs[i + 1]) * b[i]
     for f in range(n - 1):
         extra[f, X_M] += work[f] * (rhs[f] - rhs[f + 1])
+
+
+@jit
+def _chamber_fill(p0, p, pc, area, volume, dt, rt, kflow):
+    """A chamber at ``pc`` [Pa abs] filled from the pipe (``p0`` -> ``p`` over the step) through
+    ``area`` [m2] into ``volume`` [m3]: its new pressure and whether it has equalised (within
+    0.02 bar of the pipe)."""
+    m, d, _ = orifice(p0, pc, area)
+    q = (m + d * (p - p0)) * kflow
+    pc = pc + dt * rt / volume * max(q, 0.0)
+    if pc >= p - 0.02 * BAR:
+        return min(pc, p), True
+    return pc, False
 
 
 @jit
@@ -608,19 +626,20 @@ def _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold):
             extra[i, X_AUX] = min(extra[i, X_AUX] + dt * rt / v_aux * qa, max(p, extra[i, X_AUX]))
         # quick-service chamber
         if extra[i, X_QS_STATE] == 1.0:
-            m, d, _ = orifice(p0, extra[i, X_QS], coef[0, S_A_QS])
-            qq = (m + d * (p - p0)) * kflow
-            pq = extra[i, X_QS] + dt * rt / coef[0, S_V_QS] * max(qq, 0.0)
-            if pq >= p - 0.02 * BAR:
-                pq = min(pq, p)
+            extra[i, X_QS], full = _chamber_fill(p0, p, extra[i, X_QS], coef[0, S_A_QS],
+                                                 coef[0, S_V_QS], dt, rt, kflow)
+            if full:
                 extra[i, X_QS_STATE] = 2.0
-            extra[i, X_QS] = pq
-        # accelerator: opens when the pipe falls faster than its reference chamber follows
+        # accelerator: opens when the pipe falls faster than its reference chamber follows and
+        # vents the pipe into its acceleration chamber until the two have equalised
+        if extra[i, X_ACC] == 1.0:
+            extra[i, X_ACC_P], full = _chamber_fill(p0, p, extra[i, X_ACC_P], coef[0, S_A_ACC],
+                                                    coef[0, S_V_ACC], dt, rt, kflow)
+            if full:
+                extra[i, X_ACC] = 2.0
         ref = extra[i, X_REF]
         if extra[i, X_ACC] == 0.0 and acc_on and ref - p > coef[0, S_ACC_THETA]:
             extra[i, X_ACC] = 1.0
-        elif extra[i, X_ACC] == 1.0 and p < coef[0, S_ACC_CLOSE]:
-            extra[i, X_ACC] = 2.0
         extra[i, X_REF] = ref + (p - ref) * e_ref
         # control reservoir, application and release
         cr = extra[i, X_CR]
@@ -640,6 +659,7 @@ def _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold):
                 extra[i, X_QS_STATE] = 0.0
                 extra[i, X_QS] = P_ATM
                 extra[i, X_ACC] = 0.0
+                extra[i, X_ACC_P] = P_ATM
                 target = 0.0
             else:
                 # play hysteresis between the application and release characteristics
