@@ -131,7 +131,7 @@ def test_simulator_refuses_parameters_built_in_code():
 
 def inject(sim, table, v_th_m_s=1e-4):
     """Put a table into a built simulator, past every check (what the kernel alone sees)."""
-    arrays = lut_hysteresis.compile(SHIPPED)._replace(table=np.array(table, float),
+    arrays = lut_hysteresis.compile(SHIPPED)._replace(table=lut_hysteresis.table_of(*table),
                                                       coef=np.array([v_th_m_s]))
     sim.model = sim.model._replace(couplers=arrays)
 

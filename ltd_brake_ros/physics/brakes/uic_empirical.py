@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..equations import jit, jit_step
+from ..equations import jit, jit_inline, jit_step
 from ..parameters import Fittable, parameter
 from .base import EMERGENCY, BrakeArrays, released_state, vent_delay_s
 
@@ -132,10 +132,16 @@ def initial_state(arrays: BrakeArrays):
     return released_state(arrays.delay_s.shape[0])
 
 
-@jit_step
-def _relax(force, target, dt, tau_apply, tau_release):
-    tau = tau_apply if target > force else tau_release
-    return target + (force - target) * math.exp(-dt / tau)
+@jit_inline
+def _relax(force, target, decay):
+    """The force after relaxing towards ``target`` by the factor ``decay`` = exp(-dt/tau)."""
+    return target + (force - target) * decay
+
+
+@jit_inline
+def _tau(force, target, tau_apply, tau_release):
+    """Time constant of a relaxation: application when the force rises, else release [s]."""
+    return tau_apply if target > force else tau_release
 
 
 @jit_step
@@ -149,19 +155,30 @@ def advance(arrays, state, events, t0, t1):
     fb, lvl, lkind, nxt = state.force_N, state.level, state.level_kind, state.next_event
     delay, fmax, coef = arrays.delay_s, arrays.force_max_N, arrays.coef
     ev_t, ev_lvl, ev_kind, n_ev = events.time_s, events.level, events.kind, events.count
+    # vehicles share their time constants: the step's decay factor is computed once for each
+    # run of vehicles with the same interval and time constant
+    last_dt, last_tau, decay = math.nan, math.nan, 1.0
     for i in range(fb.shape[0]):
         t = t0
         f = fb[i]
         while nxt[i] < n_ev and ev_t[nxt[i]] + delay[i] <= t1:
             te = max(ev_t[nxt[i]] + delay[i], t)
             ta = coef[i, TAU_EMERGENCY] if lkind[i] == EMERGENCY else coef[i, TAU_SERVICE]
-            f = _relax(f, lvl[i] * fmax[i], te - t, ta, coef[i, TAU_RELEASE])
+            target = lvl[i] * fmax[i]
+            tau = _tau(f, target, ta, coef[i, TAU_RELEASE])
+            f = _relax(f, target, math.exp(-(te - t) / tau))
             t = te
             lvl[i] = ev_lvl[nxt[i]]
             lkind[i] = ev_kind[nxt[i]]
             nxt[i] += 1
         ta = coef[i, TAU_EMERGENCY] if lkind[i] == EMERGENCY else coef[i, TAU_SERVICE]
-        fb[i] = _relax(f, lvl[i] * fmax[i], t1 - t, ta, coef[i, TAU_RELEASE])
+        target = lvl[i] * fmax[i]
+        tau = _tau(f, target, ta, coef[i, TAU_RELEASE])
+        dt = t1 - t
+        if dt != last_dt or tau != last_tau:
+            last_dt, last_tau = dt, tau
+            decay = math.exp(-dt / tau)
+        fb[i] = _relax(f, target, decay)
 
 
 def snapshot_extras(arrays: BrakeArrays, state) -> dict:

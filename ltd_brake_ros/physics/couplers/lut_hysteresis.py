@@ -28,8 +28,10 @@ NAME = "lut_hysteresis"
 #: Registry id: selects this model's branch of the jitted dispatch.
 ID = 0
 
-#: Rows of ``CouplerArrays.table``: deflection [m], loading and unloading force [N].
-DEFLECTION, LOADING, UNLOADING = 0, 1, 2
+#: Rows of ``CouplerArrays.table``: deflection [m], loading and unloading force [N], and the
+#: slopes of the loading and unloading curves over the segment that starts at each point
+#: [N/m] (the last point repeats the last segment's), computed once rather than per force.
+DEFLECTION, LOADING, UNLOADING, LOADING_SLOPE, UNLOADING_SLOPE = 0, 1, 2, 3, 4
 #: Entry of ``CouplerArrays.coef``: the threshold speed v_th [m/s].
 V_TH = 0
 
@@ -174,7 +176,7 @@ def compile(params: Params) -> CouplerArrays:  # noqa: A001 - the contract's nam
     Returns
     -------
     CouplerArrays
-        ``table`` rows :data:`DEFLECTION`, :data:`LOADING`, :data:`UNLOADING`; ``coef``
+        ``table`` from :func:`table_of`; ``coef``
         [v_th]; the valid range is the table's.
 
     Raises
@@ -183,9 +185,35 @@ def compile(params: Params) -> CouplerArrays:  # noqa: A001 - the contract's nam
         A precondition of :func:`check` does not hold.
     """
     check(params)
-    table = np.array(curves(params), float)
+    table = table_of(*curves(params))
     return CouplerArrays(ID, table, np.array([float(params.v_th_m_s)]), float(params.v_th_m_s),
                          float(table[DEFLECTION, 0]), float(table[DEFLECTION, -1]))
+
+
+def table_of(deflection_m, loading_N, unloading_N) -> np.ndarray:
+    """The table :func:`eq3` interpolates: the curves and the slopes of their segments.
+
+    Parameters
+    ----------
+    deflection_m : array_like
+        Strictly increasing deflections [m].
+    loading_N, unloading_N : array_like
+        The curves' forces at those deflections [N].
+
+    Returns
+    -------
+    ndarray, shape (5, m)
+        Rows :data:`DEFLECTION`, :data:`LOADING`, :data:`UNLOADING`, :data:`LOADING_SLOPE` and
+        :data:`UNLOADING_SLOPE`.
+    """
+    d, fl, fu = (np.asarray(a, float) for a in (deflection_m, loading_N, unloading_N))
+    table = np.empty((5, d.size))
+    table[DEFLECTION], table[LOADING], table[UNLOADING] = d, fl, fu
+    dx = d[1:] - d[:-1]
+    for row, curve in ((LOADING_SLOPE, fl), (UNLOADING_SLOPE, fu)):
+        table[row, :-1] = (curve[1:] - curve[:-1]) / dx
+        table[row, -1] = table[row, -2]
+    return table
 
 
 def check(params: Params) -> None:
@@ -306,8 +334,8 @@ def eq3(table, v_th, defl_m, rate_m_s):
 
     Parameters
     ----------
-    table : ndarray, shape (3, m)
-        Rows :data:`DEFLECTION` [m], :data:`LOADING` and :data:`UNLOADING` [N].
+    table : ndarray, shape (5, m)
+        From :func:`table_of`.
     v_th : float
         Threshold speed [m/s].
     defl_m : float
@@ -332,9 +360,8 @@ def eq3(table, v_th, defl_m, rate_m_s):
     n = table.shape[1]
     k = min(max(seg, 0), n - 2)
     x0 = table[DEFLECTION, k]
-    dx = table[DEFLECTION, k + 1] - x0
-    sl = (table[LOADING, k + 1] - table[LOADING, k]) / dx
-    su = (table[UNLOADING, k + 1] - table[UNLOADING, k]) / dx
+    sl = table[LOADING_SLOPE, k]
+    su = table[UNLOADING_SLOPE, k]
     fl = table[LOADING, k] + sl * (defl_m - x0)
     fu = table[UNLOADING, k] + su * (defl_m - x0)
     diff = fl - fu
@@ -369,5 +396,5 @@ def coupler_force(defl_m, rate_m_s, xs, f_load, f_unload, v_th):
     force_N, dforce_ddefl, dforce_drate, segment, band
         As :func:`eq3`.
     """
-    table = np.array([xs, f_load, f_unload], float)
+    table = table_of(xs, f_load, f_unload)
     return eq3(table, float(v_th), float(defl_m), float(rate_m_s))
