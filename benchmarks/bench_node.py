@@ -5,6 +5,12 @@
   ``/clock``) and with ``publish_every:=10``. The node runs in this process as ``sim_node``
   runs it (executor in the main thread, the plant thread advancing and publishing); nothing
   subscribes, so the figure is the node's own cost.
+* A long train with the brake-pipe model: E402B + 1 000 Shimmns of 80 t,
+  ``brake_params/uic_brake_pipe.yaml``, emergency from 100 km/h at t = 0 until 1 s after the
+  stop (or ``--long-sim-seconds``), 20 ms chunks, every chunk published (arrays of 1 001 values,
+  the pipe and cylinder pressures included): the pace at ``real_time_factor:=0``, the wall time
+  of a chunk split into ``Simulator.advance`` (the kernel) and publishing, and at
+  ``real_time_factor:=1`` the achieved pace and the chunks that overran.
 * Lock-step loop from a Python client (the way ``examples/speed_controller.py`` drives the
   plant): publish ``brake_demand``, call ``~/step`` (one 20 ms chunk), wait for the reply and
   for the ``vehicles/state`` the step published. The node runs as its own process (the
@@ -13,6 +19,7 @@
 Usage::
 
     ./dev.sh run python benchmarks/bench_node.py [--sim-seconds 120] [--steps 2000] [--repeat 3]
+        [--long-repeat 1] [--long-sim-seconds 200] [--only-long]
 
 Prints a Markdown table: the best of ``--repeat`` runs and the spread (best to worst).
 """
@@ -24,7 +31,9 @@ import random
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
+from pathlib import Path
 
 # a private DDS domain on this machine only, so the benchmark disturbs (and hears) nobody
 os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(101, 200)))
@@ -43,15 +52,18 @@ from std_srvs.srv import Trigger  # noqa: E402
 from ltd_brake_ros.ros.sim_node import SimNode  # noqa: E402
 
 CHUNK_S = 0.02
+#: The long train of the brake-pipe row.
+LONG_TRAIN = """name: E402B + 1000 Shimmns (80 t)
+vehicles:
+  - type: E402B
+  - type: Shimmns
+    count: 1000
+    mass_t: 80.0
+"""
 
 
-def free_running(context: Context, sim_seconds: float, publish_every: int) -> float:
-    """Achieved real-time factor of an in-process node at ``real_time_factor:=0``."""
-    node = SimNode(context=context, parameter_overrides=[
-        Parameter(k, value=v) for k, v in {
-            "chunk_s": CHUNK_S, "real_time_factor": 0.0, "auto_brake_at_s": 0.0,
-            "max_sim_time_s": sim_seconds, "publish_every": publish_every,
-            "clock": "publish"}.items()])
+def run_to_the_end(context: Context, node: SimNode) -> float:
+    """Spin an in-process node as ``sim_node`` does until its run ends; its wall time [s]."""
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     start = time.monotonic()
@@ -65,7 +77,61 @@ def free_running(context: Context, sim_seconds: float, publish_every: int) -> fl
     node.close()
     if runner.failure:
         raise SystemExit(f"the simulation failed: {runner.failure}")
-    return runner.sim_time_s / elapsed
+    return elapsed
+
+
+def free_running(context: Context, sim_seconds: float, publish_every: int) -> float:
+    """Achieved real-time factor of an in-process node at ``real_time_factor:=0``."""
+    node = SimNode(context=context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in {
+            "chunk_s": CHUNK_S, "real_time_factor": 0.0, "auto_brake_at_s": 0.0,
+            "max_sim_time_s": sim_seconds, "publish_every": publish_every,
+            "clock": "publish"}.items()])
+    elapsed = run_to_the_end(context, node)
+    return node.runner.sim_time_s / elapsed
+
+
+def long_train(context: Context, consist: str, sim_seconds: float,
+               real_time_factor: float) -> dict:
+    """Pace and per-chunk wall times of an in-process node on the 1 000-wagon train.
+
+    Returns
+    -------
+    dict
+        ``pace`` (simulated / wall time), ``advance_ms`` and ``publish_ms`` (mean wall time of
+        ``Simulator.advance`` and of publishing a chunk), ``advance_p99_ms``, ``overruns``
+        (chunks finished after the next was due), ``chunks``.
+    """
+    node = SimNode(context=context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in {
+            "consist": consist, "initial_speed_kmh": 100.0,
+            "brake_params_file": "brake_params/uic_brake_pipe.yaml", "chunk_s": CHUNK_S,
+            "real_time_factor": real_time_factor, "auto_brake_at_s": 0.0,
+            "max_sim_time_s": sim_seconds, "shutdown_after_stop_s": 1.0,
+            "clock": "publish"}.items()])
+    runner = node.runner
+    advance, publish = [], []
+    timed_advance, timed_publish = runner.sim.advance, runner._publish_state
+
+    def advance_timed(*args, **kwargs):
+        t0 = time.perf_counter()
+        snap = timed_advance(*args, **kwargs)
+        advance.append(time.perf_counter() - t0)
+        return snap
+
+    def publish_timed(snap):
+        t0 = time.perf_counter()
+        timed_publish(snap)
+        publish.append(time.perf_counter() - t0)
+
+    runner.sim.advance, runner._publish_state = advance_timed, publish_timed
+    elapsed = run_to_the_end(context, node)
+    advance.sort()
+    return {"pace": runner.sim_time_s / elapsed, "chunks": runner.stats.chunks,
+            "advance_ms": 1e3 * sum(advance) / len(advance),
+            "advance_p99_ms": 1e3 * advance[int(0.99 * (len(advance) - 1))],
+            "publish_ms": 1e3 * sum(publish[1:]) / max(len(publish) - 1, 1),
+            "overruns": runner.stats.overruns}
 
 
 def sim_node_executable() -> str:
@@ -135,8 +201,29 @@ def lockstep_loop(context: Context, steps: int) -> float:
         node.destroy_node()
 
 
-def spread(values: list[float]) -> str:
-    return f"{max(values):.0f} (spread {min(values):.0f}-{max(values):.0f})"
+def spread(values: list[float], digits: int = 0) -> str:
+    return (f"{max(values):.{digits}f} (spread {min(values):.{digits}f}-"
+            f"{max(values):.{digits}f})")
+
+
+def long_rows(context: Context, repeat: int, sim_seconds: float) -> list[str]:
+    """Table rows of the 1 000-wagon brake-pipe train (best of ``repeat``)."""
+    with tempfile.TemporaryDirectory() as folder:
+        consist = str(Path(folder) / "e402b_1000_shimmns_80t.yaml")
+        Path(consist).write_text(LONG_TRAIN)
+        fast = [long_train(context, consist, sim_seconds, 0.0) for _ in range(repeat)]
+        paced = [long_train(context, consist, sim_seconds, 1.0) for _ in range(repeat)]
+    best = max(fast, key=lambda r: r["pace"])
+    share = best["publish_ms"] / (best["advance_ms"] + best["publish_ms"])
+    return [
+        f"| 1 000 wagons, brake pipe, real_time_factor 0: achieved real-time factor "
+        f"| {spread([r['pace'] for r in fast], 2)} |",
+        f"| 1 000 wagons, brake pipe: wall time per 20 ms chunk, advance (kernel) mean / p99; "
+        f"publishing mean | {best['advance_ms']:.1f} / {best['advance_p99_ms']:.1f} ms; "
+        f"{best['publish_ms']:.2f} ms ({100 * share:.0f} %) |",
+        f"| 1 000 wagons, brake pipe, real_time_factor 1: achieved real-time factor; chunks "
+        f"that overran | {spread([r['pace'] for r in paced], 3)}; "
+        f"{min(r['overruns'] for r in paced)} of {paced[0]['chunks']} |"]
 
 
 def main() -> None:
@@ -146,27 +233,38 @@ def main() -> None:
                     help="simulated time of each free-running run [s]")
     ap.add_argument("--steps", type=int, default=2000, help="lock-step loop steps per run")
     ap.add_argument("--repeat", type=int, default=3, help="runs of each measurement")
+    ap.add_argument("--long-repeat", type=int, default=1,
+                    help="runs of each 1 000-wagon measurement (0: none)")
+    ap.add_argument("--long-sim-seconds", type=float, default=200.0,
+                    help="longest simulated time of a 1 000-wagon run [s]")
+    ap.add_argument("--only-long", action="store_true", help="only the 1 000-wagon rows")
     args = ap.parse_args()
 
     context = Context()
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
     rclpy.logging.set_logger_level("sim_node", rclpy.logging.LoggingSeverity.WARN)
     every_1, every_10, loops = [], [], []
-    for _ in range(args.repeat):
+    for _ in range(0 if args.only_long else args.repeat):
         every_1.append(free_running(context, args.sim_seconds, 1))
         every_10.append(free_running(context, args.sim_seconds, 10))
         loops.append(lockstep_loop(context, args.steps))
+    long = long_rows(context, args.long_repeat, args.long_sim_seconds) \
+        if args.long_repeat > 0 else []
     rclpy.try_shutdown(context=context)
-    print(f"sim_node speed, scenario 6 (33 vehicles), chunk {CHUNK_S:g} s; best of "
-          f"{args.repeat} runs (spread); {os.cpu_count()} CPUs\n")
+    print(f"sim_node speed, scenario 6 (33 vehicles) unless said, chunk {CHUNK_S:g} s; best of "
+          f"{args.repeat} runs ({args.long_repeat} for 1 000 wagons) (spread); "
+          f"{os.cpu_count()} CPUs\n")
     print("| measurement | result |")
     print("|---|---:|")
-    print(f"| real_time_factor 0, every chunk published: achieved real-time factor "
-          f"| {spread(every_1)} |")
-    print(f"| real_time_factor 0, publish_every 10: achieved real-time factor "
-          f"| {spread(every_10)} |")
-    print(f"| lock-step loop (command, step one chunk, state) from a Python client: steps/s "
-          f"| {spread(loops)} |")
+    if every_1:
+        print(f"| real_time_factor 0, every chunk published: achieved real-time factor "
+              f"| {spread(every_1)} |")
+        print(f"| real_time_factor 0, publish_every 10: achieved real-time factor "
+              f"| {spread(every_10)} |")
+        print(f"| lock-step loop (command, step one chunk, state) from a Python client: "
+              f"steps/s | {spread(loops)} |")
+    for row in long:
+        print(row)
 
 
 if __name__ == "__main__":

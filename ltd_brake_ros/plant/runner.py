@@ -42,8 +42,10 @@ REJECT_LOG_PERIOD_S = 2.0
 YIELD_LEAD_S = 0.002
 YIELD_POLL_S = 0.0005
 YIELD_MAX_S = 0.01
-#: As fast as possible, the plant thread offers the GIL to the receiving thread at least this
-#: often (wall time) [s].
+#: As fast as possible, the plant thread offers the GIL to the receiving thread after holding it
+#: this long [s]. The compiled kernel runs without the GIL (a receiving thread runs meanwhile),
+#: so its time does not count: a long train, whose chunks are mostly kernel, rarely needs to
+#: yield, and each yield can cost a scheduler time slice on a busy machine.
 GIL_YIELD_PERIOD_S = 0.02
 #: Inputs the plant takes: the emergency brake (bool), the numeric :data:`COMMAND_RANGES` and
 #: the driver's brake valve position (str, a key of :data:`VALVE_POSITIONS`).
@@ -165,7 +167,10 @@ class PlantRunner:
         self._next_index = 1
         self._window = PaceWindow(now)
         self._next_status_wall = 0.0
-        self._next_yield = 0.0
+        self._gil_held_s = 0.0
+        self._last_chunk_end = now
+        #: Wall time of the last ``Simulator.advance`` [s] (its compiled part frees the GIL).
+        self.advance_wall_s = 0.0
 
     # ------------------------------------------------------------------ any thread
 
@@ -375,16 +380,19 @@ class PlantRunner:
         # the next chunk is due one period from now (or at once), later ones follow at the period
         self._pacer.rebase(0.0, now)
         self._next_index = 0 if first_due_now else 1
+        self._last_chunk_end = now
 
     def _paced_chunk(self, due: float) -> None:
         self._run_chunk(self._publish_due())
         done = self._clock.monotonic()
         if self.real_time_factor <= 0.0:
-            # let a receiving thread take the GIL now and then; not after every chunk: on a
-            # busy machine each yield can cost a scheduler time slice
-            if done >= self._next_yield:
-                self._next_yield = done + GIL_YIELD_PERIOD_S
+            # let a receiving thread take the GIL now and then (see GIL_YIELD_PERIOD_S)
+            self._gil_held_s += done - self._last_chunk_end - self.advance_wall_s
+            self._last_chunk_end = done
+            if self._gil_held_s >= GIL_YIELD_PERIOD_S:
+                self._gil_held_s = 0.0
                 self._clock.sleep(0)
+                self._last_chunk_end = self._clock.monotonic()
             return
         self.stats.lateness_s.append(done - due)
         self._next_index += 1
@@ -408,6 +416,7 @@ class PlantRunner:
         if 0.0 <= s.auto_brake_at_s <= sim.time_s + TIME_EPS_S and not self._auto_brake_done:
             self._auto_brake_done = True
             self._on_input("emergency", True, None)
+        start = self._clock.monotonic()
         try:
             snap = sim.advance(s.chunk_s, self.commands)
         except SimulationError as exc:
@@ -416,6 +425,7 @@ class PlantRunner:
         except Exception as exc:  # noqa: BLE001 - any simulator fault stops the plant, not the host
             self._fail(f"{type(exc).__name__}: {exc}")
             return False
+        self.advance_wall_s = self._clock.monotonic() - start
         self.stats.chunks += 1
         self.run_chunks += 1
         if publish:

@@ -1,24 +1,21 @@
-"""The nodes' parameters: one table with defaults, types, ranges and descriptions, and what
-sim_node's parameters resolve to (run spec, simulator, plant settings)."""
+"""The nodes' parameters: one table with defaults, types, ranges and descriptions, their
+declaration and the checks of values set at run time (what sim_node's parameters resolve to is
+:class:`~ltd_brake_ros.plant.run.PlantRun`)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any, Iterable
 
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType, SetParametersResult)
 from rclpy.exceptions import InvalidParameterTypeException, ParameterException
 
-from ..plant.settings import MAX_REAL_TIME_FACTOR, PlantSettings, StartupError
-from ..inputs import InputError
-from ..run_spec import RunSpec, RunSpecError, resolve_run_spec
 from ..physics.kernel import DEFAULT_TOLERANCE_M_S
-from ..simulator import SimulationError, Simulator
+from ..plant.settings import MAX_REAL_TIME_FACTOR, StartupError
 
 __all__ = ["ParamSpec", "PARAMETERS", "CLOCK_MODES", "RESET_PARAMETERS", "StartupError",
-           "declare_parameters", "check_value", "load_plant_inputs", "build_simulator",
-           "plant_settings", "check_run_time_change"]
+           "declare_parameters", "check_value", "check_run_time_change"]
 
 #: Values of the ``clock`` parameter.
 #: (``off`` would be read as the boolean false on a ROS command line, hence ``none``.)
@@ -185,94 +182,6 @@ def declare_parameters(node, specs: Iterable[ParamSpec] = PARAMETERS) -> dict[st
         if problem:
             raise StartupError(spec.name, problem)
     return values
-
-
-#: Node parameter of each run-spec input, for error messages.
-RUN_SPEC_PARAMETERS = {"consist": "consist", "speed_kmh": "initial_speed_kmh",
-                       "brake_params": "brake_params_file", "coupler_lut": "coupler_lut_file",
-                       "track": "track_file"}
-
-
-def load_plant_inputs(consist: str, initial_speed_kmh: float, brake_params_file: str = "",
-                      coupler_lut_file: str = "", track_file: str = "",
-                      start_chainage_m: float = 0.0) -> RunSpec:
-    """Resolve and validate the node's input parameters (see :func:`resolve_run_spec`).
-
-    Parameters
-    ----------
-    consist : str
-        Consist YAML file, or scenario name/number (``scenario_6``, ``6``).
-    initial_speed_kmh : float
-        Initial speed [km/h]; negative takes the scenario's speed.
-    brake_params_file, coupler_lut_file, track_file : str
-        Files; empty strings take the shipped defaults (level straight track).
-    start_chainage_m : float
-        Chainage of the head's front at t = 0 [m].
-
-    Returns
-    -------
-    RunSpec
-
-    Raises
-    ------
-    StartupError
-        Naming the parameter and the reason.
-    """
-    try:
-        return resolve_run_spec(consist, speed_kmh=initial_speed_kmh,
-                                params_file=brake_params_file, lut_file=coupler_lut_file,
-                                track_file=track_file, start_chainage_m=start_chainage_m)
-    except RunSpecError as exc:
-        raise StartupError(RUN_SPEC_PARAMETERS[exc.input_name], exc.detail) from None
-
-
-def build_simulator(spec: RunSpec, chunk_s: float,
-                    tolerance_m_s: float = DEFAULT_TOLERANCE_M_S) -> Simulator:
-    """The simulator of ``spec``, its compiled kernel loaded (one chunk run, then reset).
-
-    Loading the kernel here keeps it from making the first chunk late.
-
-    Parameters
-    ----------
-    spec : RunSpec
-    chunk_s : float
-        Chunk the plant advances [s].
-    tolerance_m_s : float, optional
-        The integrator's local error per step in speed [m/s]; 0 = fixed steps.
-
-    Raises
-    ------
-    StartupError
-        The inputs do not make a train (naming ``initial_speed_kmh`` or ``consist``).
-    """
-    try:
-        sim = Simulator(spec.consist, spec.speed_kmh, spec.params, spec.lut, spec.track,
-                        tolerance_m_s=tolerance_m_s)
-    except InputError as exc:
-        name = {"speed_kmh": "initial_speed_kmh", "tolerance_m_s": "tolerance_m_s"}.get(
-            str(exc.source), "consist")
-        raise StartupError(name, str(exc)) from None
-    try:
-        sim.advance(chunk_s)
-    except SimulationError:
-        pass  # the run meets it again and reports it
-    sim.reset()
-    return sim
-
-
-def plant_settings(values: dict[str, Any], follow_clock: bool = False) -> PlantSettings:
-    """The plant runtime's settings from the declared parameter values.
-
-    Parameters
-    ----------
-    values : dict
-        Parameter values by name.
-    follow_clock : bool, optional
-        The plant follows another plant's clock (the ``clock`` parameter, resolved).
-    """
-    return PlantSettings(follow_clock=follow_clock,
-                         **{f.name: values[f.name] for f in fields(PlantSettings)
-                            if f.name != "follow_clock"})
 
 
 def check_run_time_change(params, real_time_factor: float) -> SetParametersResult:

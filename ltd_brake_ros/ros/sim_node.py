@@ -1,8 +1,10 @@
 """``sim_node``: the train simulator served as a live ROS 2 plant.
 
-An adapter: parameters (:mod:`.params`) -> run spec -> :class:`~ltd_brake_ros.simulator.Simulator`
+A thin adapter, rclpy wiring only: parameters (:mod:`.params`) -> a run
+(:class:`~ltd_brake_ros.plant.run.PlantRun`: inputs, simulator, settings; rebuilt at a reset)
 -> :class:`~ltd_brake_ros.plant.runner.PlantRunner` (the plant thread: chunks paced by a
-real-time factor, jobs, lock-step, run policy, recorder lifecycle), wired to ROS here. Topic names
+real-time factor, inputs, jobs, lock-step, run policy, recorder lifecycle), the ``/clock`` policy
+in :mod:`~ltd_brake_ros.plant.clock_policy`. Topic names
 are relative (``-r __ns:=/train1`` moves them); SI units; vehicle 0 is the head, coupler 1 the
 one behind it:
 
@@ -21,8 +23,10 @@ one behind it:
   a second ``/clock`` publisher is warned about, naming it;
 * subscribes ``brake_command`` (``std_msgs/Bool``: emergency brake from the next chunk on,
   false releases), ``brake_demand`` (``std_msgs/Float64``, 0-1, service brake) and
-  ``traction_command`` (``std_msgs/Float64``, -1 full dynamic brake to 1 full traction); a
-  NaN, infinite or out-of-range value is rejected and logged;
+  ``traction_command`` (``std_msgs/Float64``, -1 full dynamic brake to 1 full traction) and
+  ``driver_brake_valve`` (``std_msgs/String``: a position of the driver's brake valve,
+  :data:`~ltd_brake_ros.inputs.commands.VALVE_POSITIONS`); a NaN, infinite or out-of-range
+  value or an unknown position is rejected and logged;
 * records every message it publishes and receives with ``record:=true`` (rosbag2 MCAP folder);
 * serves ``~/reset`` (``std_srvs/Trigger``: the run-defining parameters set since take effect
   then, or the reset is refused with the reason), ``~/step`` (``std_srvs/Trigger``; a step
@@ -55,20 +59,21 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Bool, Float64MultiArray  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
 
+from ..plant.clock_policy import (CLOCK_WATCH_PERIOD_S, ClockWatch,  # noqa: E402
+                                  other_publishers, resolve_clock)
 from ..plant.diagnostics import PlantStatus, format_fixed  # noqa: E402
 from ..plant.recorder import Recorder  # noqa: E402
+from ..plant.run import PlantRun, reset_run  # noqa: E402
 from ..plant.runner import PlantRunner  # noqa: E402
 from ..recording.bag import message_class, type_name  # noqa: E402
-from ..recording.metadata import run_metadata  # noqa: E402
 from ..recording.plant_topics import (ARRAY_TOPICS, CLOCK_TOPIC, COMMAND_TOPICS,  # noqa: E402
-                                      STATE_TOPICS, StateEncoder, extra_topic)
+                                      STATE_TOPICS, StateEncoder)
 from ..recording.qos import qos_profiles_yaml  # noqa: E402
 from ..simulator import Simulator, Snapshot  # noqa: E402
 from .messages import (CLOCK_QOS, COMMAND_QOS, DIAGNOSTICS_QOS, STATE_QOS,  # noqa: E402
                        diagnostics_msg)
 from .params import (PARAMETERS, RESET_PARAMETERS, StartupError,  # noqa: E402
-                     build_simulator, check_run_time_change, declare_parameters,
-                     load_plant_inputs, plant_settings)
+                     check_run_time_change, declare_parameters)
 
 NODE_NAME = "sim_node"
 DIAGNOSTICS_TOPIC = "/diagnostics"
@@ -76,15 +81,6 @@ DIAGNOSTICS_TOPIC = "/diagnostics"
 #: :mod:`~ltd_brake_ros.recording.plant_topics`, which the published topics come from too).
 INPUT_TOPICS = {topic: (message_class(msg_type), name)
                 for topic, (msg_type, name) in COMMAND_TOPICS.items()}
-#: Wall time between two looks for other ``/clock`` publishers while publishing it [s].
-CLOCK_WATCH_PERIOD_S = 1.0
-#: ``clock:=auto`` looks for another ``/clock`` publisher until this long after the node was
-#: created, and at least CLOCK_DISCOVERY_MIN_S (DDS discovery of the other processes'
-#: endpoints takes a moment, seconds on a busy machine) [s].
-CLOCK_DISCOVERY_S = 3.0
-CLOCK_DISCOVERY_MIN_S = 1.0
-#: Wall time between two looks during that wait [s].
-CLOCK_DISCOVERY_POLL_S = 0.05
 
 Tap = Callable[[str, Any, int, bool], None]
 
@@ -122,23 +118,25 @@ class SimNode(Node):
         if p["clock"] == "follow" and p["lockstep"]:
             raise StartupError("clock", "follow cannot be combined with lockstep:=true: the "
                                "plant publishing /clock steps this one")
-        self._params = p
-        self._run_values = {name: p[name] for name in RESET_PARAMETERS}
-        spec, self.simulator = self._build_run(p)
-        self.inputs = spec
+        self.plant_run = PlantRun.build(p)
         self._taps: list[Tap] = []
         log = self.get_logger()
         # after the kernel is loaded, while discovery finds the other nodes
-        self.clock_mode = self._resolve_clock(p["clock"], p["lockstep"])
+        clock_topic = self.resolve_topic_name(CLOCK_TOPIC)
+        self.clock_mode, line = resolve_clock(p["clock"], p["lockstep"], self._other_clocks,
+                                              self._created, clock_topic)
+        if line:
+            log.info(line)
         self._outputs = {topic: self.create_publisher(Float64MultiArray, topic, STATE_QOS)
                          for topic, _, _ in ARRAY_TOPICS}
         self._outputs.update({topic: self.create_publisher(JointState, topic, STATE_QOS)
                               for topic, _ in STATE_TOPICS})
-        self._add_extra_publishers(self.simulator)
+        self._add_extra_publishers(self.plant_run)
         if self.clock_mode == "publish":
             self._outputs[CLOCK_TOPIC] = self.create_publisher(Clock, CLOCK_TOPIC, CLOCK_QOS)
-            self._clock_warned: set[str] = set()
-            self.create_timer(CLOCK_WATCH_PERIOD_S, self._watch_clock)
+            watch = ClockWatch(clock_topic)
+            self.create_timer(CLOCK_WATCH_PERIOD_S, lambda: self._warn(
+                watch.check(self._other_clocks())))
         elif self.clock_mode == "follow":
             self.create_subscription(
                 Clock, CLOCK_TOPIC,
@@ -153,12 +151,11 @@ class SimNode(Node):
         self._encoded_sim: Simulator | None = None
         recorder = None
         if p["record"]:
-            recorder = Recorder(
-                p["record_dir"] or time.strftime("runs/run_%Y%m%d-%H%M%S"),
-                self._recorded_topics(), log, metadata=self._metadata(spec, self.simulator, p))
+            recorder = Recorder(p["record_dir"] or time.strftime("runs/run_%Y%m%d-%H%M%S"),
+                                self._recorded_topics(), log, metadata=self.plant_run.metadata())
             recorder.check()
         self.runner = PlantRunner(
-            self.simulator, plant_settings(p, self.clock_mode == "follow"),
+            self.plant_run.sim, self.plant_run.settings(self.clock_mode == "follow"),
             publish_state=self._publish_state, publish_status=self._publish_status,
             input_handled=self._input_handled, log=log, recorder=recorder,
             host_ok=self.context.ok,
@@ -170,90 +167,35 @@ class SimNode(Node):
         self.add_on_set_parameters_callback(
             lambda params: check_run_time_change(params, self.runner.real_time_factor))
         self.add_post_set_parameters_callback(self._apply_parameters)
-        s = self.runner.settings
-        mode = "following /clock" if s.follow_clock else "lock-step" if s.lockstep else \
-            f"real_time_factor {s.real_time_factor:g}"
-        clock = {"publish": "publishes /clock", "follow": "", "none": "no /clock"}[self.clock_mode]
-        log.info(f"{self._describe(spec)}; chunk {s.chunk_s:g} s, {mode}"
-                 + (f", {clock}" if clock else ""))
+        log.info(self.plant_run.start_line(self.runner.settings, self.clock_mode))
 
-    @staticmethod
-    def _build_run(p: dict) -> tuple[Any, Simulator]:
-        """The run the parameters ``p`` describe: its inputs and simulator (StartupError)."""
-        spec = load_plant_inputs(p["consist"], p["initial_speed_kmh"], p["brake_params_file"],
-                                 p["coupler_lut_file"], p["track_file"], p["start_chainage_m"])
-        return spec, build_simulator(spec, p["chunk_s"], p["tolerance_m_s"])
-
-    @staticmethod
-    def _describe(spec) -> str:
-        c = spec.consist
-        return (f"{c.name}: {c.n} vehicles, {c.length_m:.0f} m, {c.mass_kg / 1e3:.0f} t "
-                f"({spec.origin}) at {spec.speed_kmh:g} km/h")
-
-    def _metadata(self, spec, sim: Simulator, p: dict) -> dict:
-        return run_metadata(sim, scenario=spec.origin, parameters=dict(p),
-                            brake_params=str(spec.params.source),
-                            coupler_lut=str(spec.lut.source), track=str(spec.track.source))
+    @property
+    def simulator(self) -> Simulator:
+        """The simulator of the run in force."""
+        return self.plant_run.sim
 
     def _recorded_topics(self) -> list[tuple[str, str, str]]:
         endpoints = [*self._outputs.values(), *self._inputs.values()]
         return [(e.topic_name, type_name(e.msg_type), qos_profiles_yaml(e.qos_profile))
                 for e in endpoints]
 
-    def _add_extra_publishers(self, sim: Simulator) -> None:
-        """Publishers of the brake model's further per-vehicle quantities of ``sim``."""
-        for key in sim.snapshot().extras:
-            topic = extra_topic(key)
+    def _add_extra_publishers(self, run: PlantRun) -> None:
+        """Publishers of the brake model's further per-vehicle quantities of ``run``."""
+        for topic in run.extra_topics():
             if topic not in self._outputs:
                 self._outputs[topic] = self.create_publisher(Float64MultiArray, topic,
                                                              STATE_QOS)
 
-    # ------------------------------------------------------------------ clock
+    def _other_clocks(self) -> list[str]:
+        """The other nodes publishing this node's ``/clock``."""
+        return other_publishers(
+            (self.get_namespace(), self.get_name()),
+            [(i.node_namespace, i.node_name) for i in
+             self.get_publishers_info_by_topic(self.resolve_topic_name(CLOCK_TOPIC))])
 
-    def _other_clock_publishers(self) -> list[str]:
-        """Fully qualified names of the other nodes publishing this node's ``/clock``."""
-        me = (self.get_namespace(), self.get_name())
-        found = []
-        for info in self.get_publishers_info_by_topic(self.resolve_topic_name(CLOCK_TOPIC)):
-            if (info.node_namespace, info.node_name) == me:
-                continue
-            if "_UNKNOWN_" in info.node_name:  # endpoint seen before its node's name
-                found.append("another node")
-            else:
-                found.append(f"{info.node_namespace.rstrip('/')}/{info.node_name}")
-        return sorted(set(found))
-
-    def _resolve_clock(self, mode: str, lockstep: bool) -> str:
-        """``publish``, ``follow`` or ``off`` for the ``clock`` parameter (``auto`` resolved)."""
-        if mode != "auto":
-            return mode
-        deadline = max(self._created + CLOCK_DISCOVERY_S,
-                       time.monotonic() + CLOCK_DISCOVERY_MIN_S)
-        while not (others := self._other_clock_publishers()) and time.monotonic() < deadline:
-            time.sleep(CLOCK_DISCOVERY_POLL_S)
-        if not others:
-            return "publish"
-        named = time.monotonic() + CLOCK_DISCOVERY_MIN_S  # its node's name follows shortly
-        while others == ["another node"] and time.monotonic() < named:
-            time.sleep(CLOCK_DISCOVERY_POLL_S)
-            others = self._other_clock_publishers() or others
-        clock = self.resolve_topic_name(CLOCK_TOPIC)
-        self.get_logger().info(
-            f"{clock} is published by {', '.join(others)}: following it, one simulated time "
-            f"for both{' (lockstep ignored: that clock steps this train)' if lockstep else ''}; "
-            "clock:=publish would publish a second clock")
-        return "follow"
-
-    def _watch_clock(self) -> None:
-        """Warn once about each other node that publishes ``/clock`` too."""
-        new = [name for name in self._other_clock_publishers()
-               if name not in self._clock_warned and name != "another node"]
-        if new:
-            self._clock_warned.update(new)
-            self.get_logger().warning(
-                f"{', '.join(new)} also publish(es) {self.resolve_topic_name(CLOCK_TOPIC)}: "
-                "time jumps back and forth for every node using it; start one plant with "
-                "clock:=publish and the others with clock:=follow")
+    def _warn(self, line: str | None) -> None:
+        if line:
+            self.get_logger().warning(line)
 
     # ------------------------------------------------------------------ services, parameters
 
@@ -284,27 +226,13 @@ class SimNode(Node):
         return self._reply(self.runner.step(), response)
 
     def _reset_service(self, request, response):
+        def prepare(run: PlantRun) -> list:
+            self._add_extra_publishers(run)
+            return self._recorded_topics()
+
         values = {name: self.get_parameter(name).value for name in RESET_PARAMETERS}
-        if values == self._run_values:
-            return self._reply(self.runner.reset(), response)
-        p = self._params | values
-        try:
-            spec, sim = self._build_run(p)
-        except StartupError as exc:
-            response.success = False
-            response.message = (f"not reset: parameter {exc.parameter}: {exc.reason}; the "
-                                "run goes on as it was")
-            self.get_logger().error(response.message)
-            return response
-        self._add_extra_publishers(sim)
-        recording = None if self.runner.recorder is None else \
-            (self._recorded_topics(), self._metadata(spec, sim, p))
-        job = self.runner.reset((sim, plant_settings(p, self.clock_mode == "follow")), recording)
-        response.success, response.message = self.runner.result(job)
-        if response.success:
-            self.inputs, self.simulator, self._params, self._run_values = spec, sim, p, values
-            self.get_logger().info(f"new run: {self._describe(spec)}")
-            response.message += f"; new run: {self._describe(spec)}"
+        response.success, response.message, self.plant_run = reset_run(
+            self.runner, self.plant_run, values, prepare, self.get_logger())
         return response
 
     def _apply_parameters(self, params) -> None:
@@ -408,7 +336,7 @@ class SimNode(Node):
     def _publish_status(self, status: PlantStatus) -> None:
         self._emit(DIAGNOSTICS_TOPIC, diagnostics_msg(
             status, f"{self.get_fully_qualified_name()}: train plant",
-            self.inputs.consist.name, self.runner.stamp_ns))
+            self.plant_run.spec.consist.name, self.runner.stamp_ns))
 
 
 def main(args: list[str] | None = None) -> int:

@@ -380,3 +380,31 @@ def test_an_unexpected_error_on_the_plant_thread_ends_the_run(host_ok):
         assert runner.exit_status == 1 and runner.finished.is_set()
     else:  # the host is shutting down: expected, not reported
         assert log.lines == [] and runner.exit_status == 0
+
+
+@pytest.mark.parametrize("kernel_s,publish_s", [
+    (0.0, 0.0015),  # publishing holds the GIL: a yield after every 20 ms of it
+    (0.009, 0.0015),  # the kernel runs without the GIL: its time does not count
+    (0.0, 0.0045)])
+def test_as_fast_as_possible_the_plant_yields_the_gil_after_holding_it_for_a_period(
+        kernel_s, publish_s):
+    from ltd_brake_ros.plant.runner import GIL_YIELD_PERIOD_S
+
+    fake, yields = FakeClock(), []
+
+    def sleep(seconds):
+        yields.append(fake.t)
+        fake.sleep(seconds)
+
+    def publish_state(snap):
+        fake.t += publish_s
+
+    runner = PlantRunner(CostlySimulator(fake, lambda k: kernel_s),
+                         PlantSettings(real_time_factor=0.0), publish_state=publish_state,
+                         publish_status=lambda s: None, log=Log(),
+                         clock=Clock(fake.monotonic, sleep, fake.wait))
+    runner.begin()
+    while len(yields) < 5:
+        runner.poll()
+    chunks_per_yield = math.ceil(GIL_YIELD_PERIOD_S / publish_s)
+    assert np.diff(yields) == pytest.approx(chunks_per_yield * (kernel_s + publish_s))
