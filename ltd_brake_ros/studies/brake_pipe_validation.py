@@ -15,7 +15,9 @@ act on them) of a locomotive E402B followed by 80 t Shimmns wagons, all in P or 
   dt (the time of a full-force step with the same force-time loss), against train length
   beside the ETCS conversion model (SUBSET-026 A.3.8), a conservative safety model;
 * a service cycle: first step, a graduated step, full service, graduated release and the
-  release and recharge of the whole train, with the times a driver sees.
+  release and recharge of the whole train, with the times a driver sees;
+* the release of a whole train with and without overcharge, and no distributor applying
+  again while the overcharge is reduced.
 
 :func:`paper_stops` runs the paper's emergency stops (Tables 1-2) with the model.
 """
@@ -30,6 +32,7 @@ from ..inputs import BrakeParams, InputError, consist_from_mapping
 from ..physics import brakes
 from ..physics.brakes import (EMERGENCY, SERVICE, CommandEvents, friction, uic_empirical,
                                uic_pipe)
+from ..physics.brakes.base import OVERCHARGE
 from ..physics.equations import centre_offsets_m
 
 #: The shipped parameter file of the model.
@@ -210,6 +213,36 @@ def equivalent_build_up_s(length_m: float, position: str,
     return float(np.trapezoid(1.0 - frac, h.time_s))
 
 
+def train_release_s(length_m: float = 700.0, position: str = "G", overcharge: bool = False,
+                    params: uic_pipe.Params | None = None) -> tuple[float, float]:
+    """Release of a whole train after a full emergency application, with or without overcharge.
+
+    Emergency at 0 s, release (:data:`OVERCHARGE` or a plain release) once every cylinder is
+    full, then 400 s more.
+
+    Returns
+    -------
+    release_s : float
+        From the release command until every cylinder is below 10 % of its maximum [s].
+    reapplied_bar : float
+        Largest rise of any cylinder's pressure after that instant [bar]: 0 when no
+        distributor applies again while the overcharge is reduced.
+    """
+    params = params or uic_pipe.Params()
+    t_release = 60.0 if position == "P" else 180.0
+    kind = OVERCHARGE if overcharge else SERVICE
+    h = brake_history(train(wagons_for_length(length_m), position), params,
+                      [(0.0, 1.0, EMERGENCY), (t_release, 0.0, kind)], t_release + 400.0,
+                      sample_s=0.1)
+    done = (h.time_s > t_release) & np.all(h.cylinder_Pa <= 0.1 * params.max_cylinder_pressure_Pa,
+                                            axis=1)
+    k = int(np.argmax(done)) if done.any() else h.time_s.size - 1
+    after = h.cylinder_Pa[k:]
+    rise = after - np.minimum.accumulate(after, axis=0)
+    return (float(h.time_s[k] - t_release) if done.any() else float("nan"),
+            float(np.max(rise)) / 1e5)
+
+
 def etcs_build_up_s(length_m: float, position: str) -> float:
     """ETCS conversion model of a freight train's emergency build-up time (SUBSET-026 A.3.8).
 
@@ -350,4 +383,11 @@ def report(params: uic_pipe.Params | None = None) -> str:
               "|---|---|"]
     for name, value in sc.__dict__.items():
         lines.append(f"| {name} | {value:.2f} |")
+    lines += ["", "Release of a 700 m train in G after an emergency, until every cylinder is below "
+              "10 %", "", "| release | time s | largest cylinder rise afterwards bar |",
+              "|---|---|---|"]
+    for overcharge in (False, True):
+        release_s, rise = train_release_s(700.0, "G", overcharge, params)
+        lines.append(f"| {'with overcharge' if overcharge else 'plain'} | {release_s:.1f} "
+                     f"| {rise:.2f} |")
     return "\n".join(lines)

@@ -157,3 +157,27 @@ def test_empirical_build_up_time_is_its_mean_delay_plus_time_constant():
     expected = float(np.sum(w * arrays.delay_s)) + params.t_fill_s / np.log(20.0)
     # the trapezoid on a 10 ms grid and the 60 s horizon: within a few ms
     assert bpv.equivalent_build_up_s(500.0, "P", params) == pytest.approx(expected, abs=0.02)
+
+
+def test_overcharge_shortens_the_release_of_a_long_train_without_reapplying():
+    # a release that overcharges the pipe to 5.4 bar drives more air towards the tail; the
+    # overcharge is then reduced slower than the distributors sense (UIC 540 insensitivity)
+    plain_s, plain_rise = bpv.train_release_s(700.0, "G", overcharge=False)
+    over_s, over_rise = bpv.train_release_s(700.0, "G", overcharge=True)
+    assert over_s < 0.9 * plain_s
+    assert plain_rise == 0.0 and over_rise == 0.0
+
+
+def test_overcharge_rises_to_5_4_bar_and_returns_to_running_pressure():
+    from ltd_brake_ros.physics.brakes.base import OVERCHARGE
+
+    h = bpv.brake_history(bpv.train(10), PARAMS, [(0.0, 1.0, EMERGENCY), (30.0, 0.0, OVERCHARGE)],
+                          330.0, sample_s=0.5)
+    head = h.pipe_Pa[:, 0]
+    assert head.max() == pytest.approx(5.4 * BAR, abs=0.05 * BAR)
+    assert head[-1] == pytest.approx(5.0 * BAR, abs=0.02 * BAR)
+    assert np.all(h.cylinder_Pa[-1] < 1e-3 * BAR)  # released, and not applied again
+    # a plain release never overcharges
+    plain = bpv.brake_history(bpv.train(10), PARAMS, [(0.0, 1.0, EMERGENCY), (30.0, 0.0, SERVICE)],
+                              120.0, sample_s=0.5)
+    assert plain.pipe_Pa.max() <= 5.0 * BAR * (1 + 1e-9)

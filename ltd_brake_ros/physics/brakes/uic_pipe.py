@@ -22,6 +22,12 @@ c dt / dx ~ 0.1) halving the step moves the propagation speeds with acceleration
 stopping distances of Tables 1-2 by under 1 % and 0.1 % (the propagation without chambers,
 a slow diffusive drop crossing a threshold, by about 10 %).
 
+A release of kind ``OVERCHARGE`` raises the equalising reservoir ``overcharge_Pa`` above the
+running pressure for ``overcharge_hold_s``, then lowers it back at
+``overcharge_reduction_rate_Pa_s``, slower than the distributors' control reservoirs lag behind
+their application threshold (insensitivity): the higher head pressure drives more air along the
+pipe and the tail releases sooner, without a spurious application on the way back to 5 bar.
+
 With ``distributed_power`` every other locomotive has a driver's brake valve of its own that
 repeats the venting vehicle's commands ``radio_delay_s`` later (radio distributed power).
 
@@ -63,7 +69,7 @@ import numpy as np
 
 from ..equations import centre_offsets_m, jit
 from ..parameters import Fittable, parameter
-from .base import EMERGENCY, BrakeArrays, BrakeState
+from .base import EMERGENCY, OVERCHARGE, BrakeArrays, BrakeState
 
 NAME = "uic_brake_pipe"
 #: Registry id: selects this model's branch of the jitted dispatch.
@@ -100,7 +106,9 @@ S_VALVE_DELAY = 45
 S_EM_OPEN = 46
 # ---- per vehicle (continued)
 C_VALVE = 47  # delay from a command to this vehicle's driver's brake valve acting [s]; -1: none
-N_COEF = 48
+# ---- scalars (continued)
+S_OVER, S_OVER_HOLD, S_OVER_RATE = 48, 49, 50
+N_COEF = 51
 
 # ---- columns of BrakeState.extra
 X_P = 0  # pipe pressure, absolute [Pa]
@@ -192,6 +200,16 @@ class Params:
                                                "reservoir rises on release (fitted) [bar/s]",
                                                key="equalising_rate_up_bar_s", scale=BAR,
                                                lo=0.01, lo_open=True, hi=20.0)
+    overcharge_Pa: float = parameter(0.4 * BAR, "overcharge of the pipe above the running "
+                                     "pressure on a release with overcharge (5.4 bar, UIC "
+                                     "541-03 driver's brake valve) [bar]", key="overcharge_bar",
+                                     scale=BAR, lo=0.0, hi=1.0)
+    overcharge_hold_s: float = parameter(30.0, "time the driver's brake valve holds the full "
+                                         "overcharge (assumed) [s]", lo=0.0, hi=600.0)
+    overcharge_reduction_rate_Pa_s: float = parameter(
+        0.4 * BAR / 200.0, "rate at which the overcharge is then reduced, slower than the "
+        "0.3 bar in 60 s a distributor must not sense (UIC 540 insensitivity; assumed) [bar/s]",
+        key="overcharge_reduction_rate_bar_s", scale=BAR, lo=1e-4, lo_open=True, hi=0.01)
     distributed_power: bool = parameter(False, "locomotives other than the venting vehicle "
                                         "repeat its driver's brake valve by radio")
     radio_delay_s: float = parameter(0.5, "delay of the radio repeating the commands at the "
@@ -347,7 +365,8 @@ def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  #
         S_ACC_THETA: p.accelerator_threshold_Pa, S_ACC_TAU: p.accelerator_time_constant_s,
         S_A_ACC: p.accelerator_area_m2, S_V_ACC: p.accelerator_chamber_volume_m3,
         S_SUPPLY_BAND: p.supply_band_Pa, S_VALVE_DELAY: p.valve_delay_s,
-        S_EM_OPEN: p.emergency_opening_s,
+        S_EM_OPEN: p.emergency_opening_s, S_OVER: p.overcharge_Pa,
+        S_OVER_HOLD: p.overcharge_hold_s, S_OVER_RATE: p.overcharge_reduction_rate_Pa_s,
     }
     for col, value in scalars.items():
         coef[:, col] = value
@@ -577,6 +596,10 @@ def _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold):
         else:
             mode = _RELEASE
             er_target = p_run
+            if lkind[v] == OVERCHARGE:
+                # overcharge held, then reduced slower than a distributor senses
+                since = tk + dt - extra[v, X_T_ACT] - coef[0, S_OVER_HOLD]
+                er_target += max(0.0, coef[0, S_OVER] - coef[0, S_OVER_RATE] * max(0.0, since))
         # the equalising reservoir moves for the part of the step the command acts
         acting = _clip01((tk + dt - extra[v, X_T_ACT]) / dt)
         er = extra[v, X_ER]
