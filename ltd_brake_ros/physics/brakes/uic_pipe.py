@@ -108,7 +108,10 @@ S_EM_OPEN = 46
 C_VALVE = 47  # delay from a command to this vehicle's driver's brake valve acting [s]; -1: none
 # ---- scalars (continued)
 S_OVER, S_OVER_HOLD, S_OVER_RATE = 48, 49, 50
-N_COEF = 51
+# ---- per face (i, i + 1)
+C_FACE_G = 51  # dt * A / dx: conductance of the face without friction [m s]
+C_FACE_HOSE = 52  # hose loss per length, K / dx [1/m]
+N_COEF = 53
 
 # ---- columns of BrakeState.extra
 X_P = 0  # pipe pressure, absolute [Pa]
@@ -337,6 +340,8 @@ def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  #
     coef = np.zeros((n, N_COEF))
     coef[:, C_CAP] = (area * length + p.branch_volume_m3) / rt
     coef[:-1, C_DX] = 0.5 * (length[:-1] + length[1:])
+    coef[:-1, C_FACE_G] = p.pipe_step_s * area / coef[:-1, C_DX]
+    coef[:-1, C_FACE_HOSE] = p.hose_loss_coefficient / coef[:-1, C_DX]
     coef[:, C_DISTRIBUTOR] = [1.0 if v.brake is not None else 0.0 for v in vs]
     in_g = np.array([v.brake_position == "G" for v in vs])
     coef[:, C_FILL_RATE] = np.where(in_g, p.fill_rate_G_Pa_s, p.fill_rate_P_Pa_s)
@@ -493,14 +498,14 @@ def _distributor_branch(i, p, coef, extra):
 def _pipe_step(coef, extra, dt, a, b, c, rhs, work):
     """One backward-Euler step of the pipe pressures and face flows (in ``extra``)."""
     n = coef.shape[0]
-    area, diam, hose_k, mu, rt = (coef[0, S_AREA], coef[0, S_DIAM], coef[0, S_HOSE_K],
-                                  coef[0, S_MU], coef[0, S_RT])
+    area, diam, mu, rt = coef[0, S_AREA], coef[0, S_DIAM], coef[0, S_MU], coef[0, S_RT]
     kflow = _C_CHOKED / math.sqrt(rt)
     lam_floor = 64.0 * mu * area / diam  # laminar f |m| at vanishing flow [kg/s]
+    inv_dt = 1.0 / dt
     for i in range(n):
         a[i] = 0.0
         c[i] = 0.0
-        cap = coef[i, C_CAP] / dt
+        cap = coef[i, C_CAP] * inv_dt
         p = extra[i, X_P]
         b[i] = cap
         rhs[i] = cap * p
@@ -513,19 +518,21 @@ def _pipe_step(coef, extra, dt, a, b, c, rhs, work):
                                   extra[i, X_ER])
             b[i] += dq * kflow
             rhs[i] += (dq * p - q) * kflow
+    # face flow under friction, linearised: m_new (1 + dt lam) = m + dt A / dx (p_f - p_f+1),
+    # dt lam = dt R T / A (f_m / D + K |m| / dx) / (p_f + p_f+1), f_m = f |m| (64/Re laminar
+    # floor, Blasius 0.316 Re^-1/4 turbulent)
+    c_lam = dt * rt / area
+    inv_diam = 1.0 / diam
+    blasius = 0.316 * (area * mu / diam) ** 0.25  # f |m| = blasius |m|^(3/4)
     for f in range(n - 1):
-        dx = coef[f, C_DX]
         m = extra[f, X_M]
         am = abs(m)
-        rho = 0.5 * (extra[f, X_P] + extra[f + 1, X_P]) / rt
-        re = am * diam / (area * mu)
-        fm = lam_floor
-        if re > 0.0:
-            fm = max(lam_floor, 0.316 * am / math.sqrt(math.sqrt(re)))  # Blasius
-        lam = (fm * dx / diam + hose_k * am) / (2.0 * rho * area * dx)
-        den = 1.0 + dt * lam
-        g = dt * area / (dx * den)
-        mt = m / den
+        r = math.sqrt(am)
+        fm = max(lam_floor, blasius * r * math.sqrt(r))
+        psum = extra[f, X_P] + extra[f + 1, X_P]
+        inv_den = psum / (psum + c_lam * (fm * inv_diam + coef[f, C_FACE_HOSE] * am))
+        g = coef[f, C_FACE_G] * inv_den
+        mt = m * inv_den
         work[f] = g
         # m_new = mt + g (p_f - p_f+1)
         b[f] += g
