@@ -35,7 +35,10 @@ A brake model is one module of this package that defines:
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import os
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from .. import parameters
@@ -65,6 +68,79 @@ def advance(arrays, state, events, t0, t1):
         linear_ramp.advance(arrays, state, events, t0, t1)
     elif arrays.model == uic_pipe.ID:
         uic_pipe.advance(arrays, state, events, t0, t1)
+
+
+#: The package whose sources are compiled into the cached dispatchers (models, kernel, equations).
+PHYSICS_DIR = Path(__file__).resolve().parent.parent
+
+
+def sources_stamp(root: Path = PHYSICS_DIR) -> str:
+    """SHA-256 of every Python source under ``root``: relative paths and contents, sorted.
+
+    Parameters
+    ----------
+    root : Path, optional
+        Directory (default: the physics package).
+
+    Returns
+    -------
+    str
+        Hex digest.
+    """
+    digest = hashlib.sha256()
+    for path in sorted(Path(root).rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode())
+        digest.update(b"\0")
+        digest.update(path.read_bytes())
+        digest.update(b"\0")
+    return digest.hexdigest()
+
+
+def refresh_stale_cache(dispatcher, stamp: str | None = None) -> bool:
+    """Empty a numba dispatcher's disk cache when the sources compiled into it have changed.
+
+    numba invalidates a cached function when its own source file changes, not when a function
+    it calls (and compiles into itself) does: after a brake model's file changes,
+    :func:`advance` would keep running the old model. The stamp of the sources is kept beside
+    the function's cache; call this before the dispatcher's first call.
+
+    Parameters
+    ----------
+    dispatcher
+        A function compiled with ``cache=True`` (anything else is left alone).
+    stamp : str, optional
+        Stamp of the sources it depends on (default: :func:`sources_stamp` of the physics
+        package).
+
+    Returns
+    -------
+    bool
+        The cache was emptied (a first run counts: no stamp yet).
+    """
+    cache = getattr(dispatcher, "_cache", None)
+    path = getattr(cache, "cache_path", None)
+    if path is None or not hasattr(cache, "flush"):
+        return False  # not cached (or numba absent)
+    stamp = stamp if stamp is not None else sources_stamp()
+    func = dispatcher.py_func
+    module = os.path.splitext(os.path.basename(func.__code__.co_filename))[0]
+    stamp_file = Path(path) / f"{module}.{func.__qualname__}.sources"
+    try:
+        if stamp_file.read_text() == stamp:
+            return False
+    except OSError:
+        pass
+    try:
+        cache.flush()
+        tmp = stamp_file.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(stamp)
+        os.replace(tmp, stamp_file)
+    except OSError:  # a read-only cache: numba does not write there either
+        return False
+    return True
+
+
+refresh_stale_cache(advance)
 
 
 def model_of(params) -> Any:
