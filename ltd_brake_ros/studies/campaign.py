@@ -6,6 +6,7 @@ run is the same wherever and in whatever batch it executes.
 """
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import functools
 import math
@@ -63,16 +64,29 @@ def inverse_cdf(dist: Distribution, u: float) -> float:
         mean, sd, lo, hi = v
         p_lo, p_hi = ndtr((lo - mean) / sd), ndtr((hi - mean) / sd)
         return float(min(max(mean + sd * ndtri(p_lo + u * (p_hi - p_lo)), lo), hi))
-    n = (len(v) + 1) // 2
-    edges, weights = np.array(v[:n]), np.array(v[n:])
-    cdf = np.concatenate(([0.0], np.cumsum(weights) / weights.sum()))
+    cdf, edges = _histogram_cdf(tuple(v))
     return float(np.interp(u, cdf, edges))
+
+
+@functools.lru_cache(maxsize=64)
+def _histogram_cdf(values: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """Cumulative probability at each edge of a histogram (edges then weights), and the
+    edges (a campaign draws from the same few histograms thousands of times)."""
+    n = (len(values) + 1) // 2
+    edges, weights = np.array(values[:n]), np.array(values[n:])
+    return np.concatenate(([0.0], np.cumsum(weights) / weights.sum())), edges
+
+
+@functools.lru_cache(maxsize=64)
+def _cumulative(weights: tuple) -> list:
+    """Cumulative share of each of ``weights``, as floats."""
+    return (np.cumsum(weights) / np.sum(weights)).tolist()
 
 
 def _choose(weights, u: float) -> int:
     """Index drawn with relative ``weights`` at probability ``u``."""
-    cdf = np.cumsum(weights) / np.sum(weights)
-    return int(min(np.searchsorted(cdf, u, side="right"), len(cdf) - 1))
+    cdf = _cumulative(tuple(weights))
+    return min(bisect.bisect_right(cdf, u), len(cdf) - 1)
 
 
 def _whole(lo: int, hi: int, u: float) -> int:

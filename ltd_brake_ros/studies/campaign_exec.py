@@ -34,6 +34,13 @@ __all__ = ["DaskExecutor", "Executor", "PoolExecutor", "SerialExecutor", "make_e
 
 #: Times a batch is resubmitted after its worker process died.
 MAX_RETRIES = 3
+#: Dask settings of a cluster started here (``local:N``): without a dashboard nothing reads the
+#: workers' statistical profiler (a stack sample of the running batch every 10 ms), and the
+#: event loops' health checks (every 20 ms) and system monitors (every 0.5 s) may run
+#: seldom; on few cores each of them takes turns from the batches.
+LOCAL_CLUSTER_CONFIG = {"distributed.worker.profile.enabled": False,
+                        "distributed.admin.tick.interval": "1s",
+                        "distributed.admin.system-monitor.interval": "2s"}
 
 
 class Executor:
@@ -109,7 +116,8 @@ class DaskExecutor(Executor):
     """Dask distributed: an existing scheduler (``tcp://host:port``) or ``local:N``.
 
     ``local:N`` starts a :class:`distributed.LocalCluster` of N single-threaded worker
-    processes. Dask reschedules the batches of a worker that is lost.
+    processes with :data:`LOCAL_CLUSTER_CONFIG`. Dask reschedules the batches of a worker that
+    is lost.
 
     Parameters
     ----------
@@ -119,6 +127,7 @@ class DaskExecutor(Executor):
     """
 
     def __init__(self, address: str, timeout_s: float = 30.0):
+        import dask
         from distributed import Client, LocalCluster
 
         self.cluster = None
@@ -129,8 +138,9 @@ class DaskExecutor(Executor):
                 n = 0
             if n < 1:
                 raise InputError("--dask", "", f"local:N needs a worker count >= 1, got {address!r}")
-            self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                        dashboard_address=None)
+            with dask.config.set(LOCAL_CLUSTER_CONFIG):  # the workers take it as they start
+                self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                            dashboard_address=None)
             self.client = Client(self.cluster)
         else:
             try:
