@@ -64,7 +64,7 @@ class CommandScript:
     ----------
     steps : tuple of (float, dict)
         (time [s], fields that change then: ``emergency`` bool, ``brake_demand`` 0-1,
-        ``traction`` -1-1, ``overcharge`` bool), sorted by time.
+        ``traction`` -1-1, and ``overcharge`` bool from a valve position), sorted by time.
     duration_s : float or None
         Length of the run [s]; ``None``: until the train stops after a brake command.
     source : str
@@ -80,9 +80,9 @@ def load_command_script(path: str | os.PathLike) -> CommandScript:
     """Load a command script YAML file.
 
     The file holds ``duration_s`` (optional) and ``commands``, a list of mappings with ``t_s``
-    and any of ``emergency``, ``brake_demand``, ``traction``, ``overcharge``, or
-    ``driver_brake_valve`` (a position of :data:`VALVE_POSITIONS`, in place of the first three
-    and ``overcharge``); each holds from its time on.
+    and any of ``emergency``, ``brake_demand``, ``traction`` and ``driver_brake_valve`` (a
+    position of :data:`VALVE_POSITIONS`, in place of ``emergency`` and ``brake_demand``: the
+    one way to overcharge, as on the node's topics); each holds from its time on.
 
     Parameters
     ----------
@@ -102,8 +102,7 @@ def load_command_script(path: str | os.PathLike) -> CommandScript:
     steps = []
     for i, entry in enumerate(entries):
         f = Fields(entry, str(p), f"commands[{i}]")
-        f.reject_unknown({"t_s", "emergency", "brake_demand", "traction", "overcharge",
-                          "driver_brake_valve"})
+        f.reject_unknown({"t_s", "emergency", "brake_demand", "traction", "driver_brake_valve"})
         t = f.number("t_s", lo=0.0)
         if steps and t < steps[-1][0]:
             raise f.error("t_s", f"{t:g} s comes before the previous entry ({steps[-1][0]:g} s)")
@@ -118,9 +117,8 @@ def load_command_script(path: str | os.PathLike) -> CommandScript:
                 raise f.error("driver_brake_valve", f"unknown position "
                               f"{f.data['driver_brake_valve']!r}; expected one of "
                               f"{', '.join(VALVE_POSITIONS)}")
-        for name in ("emergency", "overcharge"):
-            if f.has(name):
-                change[name] = f.boolean(name, False)
+        if f.has("emergency"):
+            change["emergency"] = f.boolean("emergency", False)
         for name, (lo, hi) in COMMAND_RANGES.items():
             if f.has(name):
                 change[name] = f.number(name, lo=lo, hi=hi)

@@ -15,13 +15,18 @@ PlotJuggler plot by joint name.
 """
 from __future__ import annotations
 
+import struct
+from typing import Any, Mapping
+
 import numpy as np
 
-from .cdr_encode import Float64ArrayEncoder, JointStateEncoder, encode_clock
+from ..inputs.commands import VALVE_FIELDS, VALVE_POSITIONS
+from .cdr_encode import (Float64ArrayEncoder, JointStateEncoder, encode_bool, encode_clock,
+                         encode_float64)
 from .qos import qos_profiles_yaml
 
 __all__ = ["ARRAY_TOPICS", "STATE_TOPICS", "CLOCK_TOPIC", "COMMAND_TOPICS", "JOINT_STATE",
-           "extra_topic", "joint_names", "plant_topics", "qualify", "StateEncoder"]
+           "command_messages", "extra_topic", "joint_names", "plant_topics", "qualify", "StateEncoder"]
 
 #: Published arrays (``std_msgs/msg/Float64MultiArray``): topic, Snapshot attribute,
 #: ``layout.dim[0].label``.
@@ -67,6 +72,47 @@ def extra_topic(key: str) -> str:
         if key.endswith(suffix) and len(key) > len(suffix):
             return f"vehicles/{key[:-len(suffix)]}"
     return f"vehicles/{key}"
+
+
+def command_messages(change: Mapping[str, Any]) -> list[tuple[str, bytes]]:
+    """The command messages that make the input changes of a command script entry.
+
+    Changes made by a driver's brake valve position (the whole entry of
+    :data:`~ltd_brake_ros.inputs.commands.VALVE_POSITIONS`) go out as its name on
+    ``driver_brake_valve`` (``std_msgs/msg/String``); the others each on its own topic.
+
+    Parameters
+    ----------
+    change : mapping
+        Input name (``emergency``, ``brake_demand``, ``traction``, ``overcharge``) to value.
+
+    Returns
+    -------
+    list of (str, bytes)
+        Node-relative topic and CDR payload of each message, in :data:`COMMAND_TOPICS` order.
+
+    Raises
+    ------
+    KeyError
+        A change no command topic carries (``overcharge`` outside a valve position).
+    """
+    valve = {name: change[name] for name in VALVE_FIELDS if name in change}
+    position = next((name for name, sets in VALVE_POSITIONS.items()
+                     if "overcharge" in sets and sets == valve), None)
+    out = []
+    for topic, (_, name) in COMMAND_TOPICS.items():
+        if name == "driver_brake_valve":
+            if position is not None:
+                text = position.encode() + b"\x00"  # std_msgs/String: length, bytes, NUL
+                out.append((topic, b"\x00\x01\x00\x00" + struct.pack("<I", len(text)) + text))
+        elif name in change and (position is None or name not in valve):
+            value = change[name]
+            out.append((topic, encode_bool(value) if name == "emergency" else
+                        encode_float64(value)))
+    if "overcharge" in change and position is None:
+        raise KeyError(f"overcharge={change['overcharge']!r} outside a driver's brake valve "
+                       "position: no command topic carries it")
+    return out
 
 
 def joint_names(kind: str, n_vehicles: int) -> list[str]:

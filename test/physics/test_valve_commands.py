@@ -74,18 +74,18 @@ def write(tmp_path, text):
     return p
 
 
-def test_scripts_take_valve_positions_and_overcharge(tmp_path):
+def test_scripts_take_valve_positions(tmp_path):
     p = write(tmp_path, "commands:\n"
                         "  - {t_s: 0, driver_brake_valve: service, traction: 0.0}\n"
                         "  - {t_s: 5, driver_brake_valve: lap}\n"
                         "  - {t_s: 9, driver_brake_valve: release_overcharge}\n"
-                        "  - {t_s: 20, overcharge: false}\n")
+                        "  - {t_s: 20, emergency: true}\n")
     steps = load_command_script(p).steps
     assert steps == ((0.0, {"emergency": False, "brake_demand": FIRST_STEP_DEMAND,
                             "overcharge": False, "traction": 0.0}),
                      (5.0, {}),
                      (9.0, {"emergency": False, "brake_demand": 0.0, "overcharge": True}),
-                     (20.0, {"overcharge": False}))
+                     (20.0, {"emergency": True}))
 
 
 @pytest.mark.parametrize("entry,reason", [
@@ -94,7 +94,8 @@ def test_scripts_take_valve_positions_and_overcharge(tmp_path):
      "release_overcharge, running, lap, service, full_service, emergency"),
     ("{t_s: 0, driver_brake_valve: service, brake_demand: 0.5}",
      "commands[0].driver_brake_valve: give either a valve position or brake_demand, not both"),
-    ("{t_s: 0, overcharge: 1}", "commands[0].overcharge: must be true or false"),
+    ("{t_s: 0, overcharge: true}", "commands[0].overcharge: unknown field; expected one of "
+     "brake_demand, driver_brake_valve, emergency, t_s, traction"),
 ])
 def test_a_bad_valve_entry_is_one_line_naming_the_field(tmp_path, entry, reason):
     p = write(tmp_path, f"commands:\n  - {entry}\n")
@@ -121,3 +122,26 @@ def test_with_the_brake_pipe_model_each_position_gives_its_pipe_reduction():
         c = snap.extras["brake_cylinder_pressure_Pa"][1:] / 1e5
         assert np.allclose(p, pipe_bar, atol=0.02), position
         assert cyl_lo <= c.min() and c.max() <= cyl_hi + 1e-9, (position, c)
+
+
+def test_a_script_entry_is_recorded_as_the_messages_that_make_it():
+    from rclpy.serialization import deserialize_message
+    from std_msgs.msg import Bool, Float64, String
+
+    from ltd_brake_ros.recording.plant_topics import command_messages
+
+    def decoded(change):
+        types = {"brake_command": Bool, "brake_demand": Float64, "traction_command": Float64,
+                 "driver_brake_valve": String}
+        return [(topic, deserialize_message(data, types[topic]).data)
+                for topic, data in command_messages(change)]
+
+    for position in VALVE_POSITIONS:
+        if position != "lap":  # lap changes nothing: no message
+            assert decoded(valve_position(position) | {"traction": 0.5}) == [
+                ("traction_command", 0.5), ("driver_brake_valve", position)]
+    assert decoded({"emergency": True, "brake_demand": 0.4}) == [
+        ("brake_command", True), ("brake_demand", 0.4)]
+    assert decoded({}) == []
+    with pytest.raises(KeyError, match="overcharge"):
+        command_messages({"overcharge": True})
