@@ -209,14 +209,17 @@ _BOOL = re.compile(r"(?:true|True|TRUE|false|False|FALSE)\Z")
 _NULL = re.compile(r"(?:~|null|Null|NULL|)\Z")
 _TAG = "tag:yaml.org,2002:"
 
-try:  # libyaml parses about three times faster (and composes, see _load_plain)
-    from yaml._yaml import CParser as _Parser
+try:  # libyaml parses about three times faster (and composes plain documents: _load_plain)
+    from yaml._yaml import CParser as _CParser
+except ImportError:  # pragma: no cover - PyYAML built without libyaml
+    _CParser = None
+
+if _CParser is not None:
+    _Parser = _CParser
 
     def _init_parser(loader, text):
         _Parser.__init__(loader, text)
-    _CParser = _Parser
-except ImportError:  # pragma: no cover - PyYAML built without libyaml
-    _CParser = None
+else:  # pragma: no cover
     from yaml.parser import Parser as _PyParser
     from yaml.reader import Reader
     from yaml.scanner import Scanner

@@ -102,3 +102,22 @@ def test_nesting_libyaml_cannot_take_is_refused_in_one_line(tmp_path):
                          timeout=120)
     assert run.returncode == 0, run.stderr
     assert f"name: nested deeper than {schema.MAX_DEPTH} levels (line 1)" in run.stdout
+
+
+def test_without_libyaml_files_read_the_same(tmp_path):
+    # PyYAML built without libyaml: the Python parser reads every file, to the same data
+    p = tmp_path / "dup.yaml"
+    p.write_text("a: 1\nb: [2, 3]\na: 4\n")
+    code = ("import sys\nsys.modules['yaml._yaml'] = None\n"
+            "from ltd_brake_ros.inputs import InputError, load_scenarios, load_yaml, schema\n"
+            "assert schema._CParser is None\n"
+            "print(sorted(load_scenarios()))\n"
+            "try:\n    load_yaml(sys.argv[1])\nexcept InputError as exc:\n    print(exc)\n")
+    run = subprocess.run([sys.executable, "-c", code, str(p)], capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0, run.stderr
+    lines = run.stdout.splitlines()
+    assert lines[0] == repr(list(range(1, 13)))
+    with pytest.raises(InputError) as exc:
+        load_yaml(p)
+    assert lines[1] == str(exc.value) and "given twice (line 1 and line 3)" in lines[1]
