@@ -140,7 +140,10 @@ def refresh_stale_cache(dispatcher, stamp: str | None = None) -> bool:
     return True
 
 
-refresh_stale_cache(advance)
+_STAMP = sources_stamp()
+for _dispatcher in (advance, *(m.advance for m in MODELS.values())):
+    refresh_stale_cache(_dispatcher, _STAMP)
+del _dispatcher
 
 
 def model_of(params) -> Any:
