@@ -139,6 +139,50 @@ def test_adhesion_demand_is_the_peak_of_a_finely_sampled_stop(reference):
         assert table["max_adhesion_vehicle"][run].as_py() == int(np.argmax(peak)) + 1
 
 
+@pytest.mark.parametrize("step_s", [None, 0.03])
+def test_grouped_chunks_give_the_run_of_one_chunk_per_call(reference, tmp_path, monkeypatch,
+                                                           step_s):
+    from ltd_brake_ros.inputs import consist_from_mapping
+    from ltd_brake_ros.inputs.commands import CommandScript
+    from ltd_brake_ros.simulator import Simulator
+    from ltd_brake_ros.studies.campaign import (CHUNK_S, MAX_TIME_S, draw, models, run_one)
+    from ltd_brake_ros.studies.runs import scripted_run
+
+    c = reference[0]
+    if step_s is not None:  # 1 s is no whole number of steps: 34 steps, 2 s 67 steps
+        path = write_campaign(tmp_path)
+        path.write_text(path.read_text() + f"step_s: {step_s}\n")
+        c = load_campaign(path)
+    calls = []
+    advance = Simulator.advance
+
+    def counted(sim, duration_s, commands=None):
+        calls.append(duration_s)
+        return advance(sim, duration_s, commands)
+
+    for run in range(6):
+        monkeypatch.setattr(Simulator, "advance", counted)
+        calls.clear()
+        [row] = run_one(c, run)
+        monkeypatch.setattr(Simulator, "advance", advance)
+        sample, data = draw(c, run)
+        params, lut = models(c, sample)
+        sim = scripted_run(consist_from_mapping(data, "test"), row["speed_kmh"],
+                           CommandScript(((0.0, {"emergency": True}),)), params, lut,
+                           step_s=c.step_s, chunk_s=CHUNK_S, max_time_s=MAX_TIME_S)
+        # the same steps give the same numbers bit for bit; the same final chunk the same
+        # steps after the stop
+        assert (row["stopping_distance_m"], row["stop_time_s"], row["steps"],
+                row["newton_iterations"], row["peak_buff_kN"], row["peak_draft_kN"]) == (
+            sim.stopping_distance_m, sim.stop_time_s, sim.steps, sim.newton_iterations,
+            sim.coupler_peaks().buff_N / 1e3, sim.coupler_peaks().draft_N / 1e3)
+        assert calls[-1] == CHUNK_S  # the train stopped in a single chunk, as before
+        if step_s is None:  # chunks grouped while the stop was far
+            assert max(calls) > CHUNK_S and len(calls) < sim.time_s / CHUNK_S - 1
+        else:
+            assert set(calls) == {CHUNK_S}
+
+
 def test_every_train_runs_every_manoeuvre(tmp_path):
     # a service application released at 20 s, a full one to standstill, a traction start
     manoeuvres = """manoeuvres:
