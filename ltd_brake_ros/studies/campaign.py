@@ -24,7 +24,7 @@ from ..simulator import Commands, SimulationError, Simulator
 from .runs import scripted_run, summarize
 
 __all__ = ["KPI_FIELDS", "dimensions", "draw", "emergency_run", "inverse_cdf", "models",
-           "run_batch", "run_one", "schema_of"]
+           "run_batch", "run_one", "schema_of", "warm_up"]
 
 #: Simulated time per chunk of an emergency stop [s], and when to give up if the train has not
 #: stopped [s] (as :func:`.runs.emergency_stop`). While the stop is far, several chunks are
@@ -417,6 +417,23 @@ def _simulate(c: Campaign, m, consist, speed_kmh: float, params, lut) -> dict:
     for name in ("draft_ok", "buff_ok", "adhesion_ok"):
         out[name] = flags[name]
     return out
+
+
+def warm_up() -> None:
+    """Load the compiled kernel into this process before its first batch.
+
+    A short emergency stop of a locomotive and a wagon of the shipped vehicle library with
+    the default models: numba loads the kernel from its on-disk cache (or compiles it) once
+    per process, which a worker otherwise does in its first batch.
+    """
+    try:
+        consist = consist_from_mapping({"name": "warm-up", "vehicles": [
+            {"type": "E402B"}, {"type": "Shimmns", "mass_t": 80.0}]}, "warm-up")
+        sim = Simulator(consist, 50.0)
+        sim.advance(0.1, Commands(emergency=True))
+        sim.verdicts()
+    except Exception:  # noqa: BLE001 - a vehicle library without these types: the first
+        pass  # batch loads the kernel instead, and reports any real problem with its runs
 
 
 def run_batch(c: Campaign, batch: int) -> pa.Table:

@@ -26,7 +26,7 @@ import pyarrow.parquet as pq
 from ..inputs import InputError
 from ..inputs.campaign import Campaign
 from ..simulator import SimulationError
-from .campaign import run_batch, schema_of
+from .campaign import run_batch, schema_of, warm_up
 from .parallel import default_workers, process_pool
 
 __all__ = ["DaskExecutor", "Executor", "PoolExecutor", "SerialExecutor", "make_executor",
@@ -116,8 +116,9 @@ class DaskExecutor(Executor):
     """Dask distributed: an existing scheduler (``tcp://host:port``) or ``local:N``.
 
     ``local:N`` starts a :class:`distributed.LocalCluster` of N single-threaded worker
-    processes with :data:`LOCAL_CLUSTER_CONFIG`. Dask reschedules the batches of a worker that
-    is lost.
+    processes with :data:`LOCAL_CLUSTER_CONFIG`. Every worker, present or joining later, loads
+    the compiled kernel as it joins (so starting counts that). Dask reschedules the batches of
+    a worker that is lost.
 
     Parameters
     ----------
@@ -148,6 +149,8 @@ class DaskExecutor(Executor):
             except (OSError, TimeoutError, ValueError) as exc:
                 raise InputError("--dask", "", f"cannot reach the Dask scheduler at {address}: "
                                  f"{exc}") from None
+        # every worker, present or joining later, loads the kernel before its first batch
+        self.client.register_worker_callbacks(setup=warm_up)
         self.workers = max(1, sum(w.get("nthreads", 1) for w in
                                   self.client.scheduler_info()["workers"].values()))
 

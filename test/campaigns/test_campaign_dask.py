@@ -76,6 +76,22 @@ def test_a_killed_worker_loses_and_duplicates_nothing(pool_table, dask_cluster, 
     assert done["run_id"].to_pylist() == list(range(24))
     assert done.equals(table)
 
+def _worker_setup() -> tuple:
+    """What a worker holds before any batch: its profiler setting, the kernel's loaded
+    specialisations."""
+    import dask
+
+    from ltd_brake_ros.physics import kernel
+
+    return dask.config.get("distributed.worker.profile.enabled"), len(kernel.run_steps.overloads)
+
+
+def test_local_cluster_workers_load_the_kernel_before_the_first_batch():
+    with DaskExecutor("local:1") as executor:
+        # no dashboard reads the profiler; the kernel loaded as the worker joined
+        assert list(executor.client.run(_worker_setup).values()) == [(False, 1)]
+
+
 def test_unreachable_scheduler_names_the_option():
     port = free_port()
     with pytest.raises(InputError, match=rf"^--dask: cannot reach the Dask scheduler at "
