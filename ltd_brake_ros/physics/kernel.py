@@ -465,6 +465,7 @@ def _residual(u, s, cp, fr_arrays, w):
     g, diag, cj, fc, fair = w.g, w.diag, w.cj, w.fc, w.fair
     n = u.shape[0]
     nc = n - 1
+    inv_bh = 1.0 / bh
     for j in range(nc):
         rate = u[j] - u[j + 1]
         d = xhat[j] - xhat[j + 1] + bh * rate
@@ -473,7 +474,7 @@ def _residual(u, s, cp, fr_arrays, w):
         cj[j] = bh * kd + kr
     converged = True
     for i in range(n):
-        g0 = meff[i] * (u[i] - vhat[i]) / bh - fx[i]
+        g0 = meff[i] * (u[i] - vhat[i]) * inv_bh - fx[i]
         if i < nc:
             g0 += fc[i]
         if i > 0:
@@ -484,13 +485,13 @@ def _residual(u, s, cp, fr_arrays, w):
         if spd > v_stick:
             sg = 1.0 if u[i] > 0.0 else -1.0
             g[i] = g0 + sg * total
-            diag[i] = meff[i] / bh + dr
+            diag[i] = meff[i] * inv_bh + dr
             fair[i] = fa
         else:
             # standstill band: friction grows linearly up to its full value at |u| = v_stick
             # and holds the vehicle against any smaller force
             g[i] = g0 + total * u[i] / v_stick
-            diag[i] = meff[i] / bh + (total + dr * spd) / v_stick
+            diag[i] = meff[i] * inv_bh + (total + dr * spd) / v_stick
             fair[i] = fa * spd / v_stick
         if not abs(g[i]) <= tol[i]:  # also catches NaN
             converged = False
@@ -510,23 +511,44 @@ def _all_finite(a):
 def _solve_tridiagonal(dvec, cj, g, dwork, du):
     """Solve J du = -g, J = diag(dvec) + sum over couplers of cj * (e_j - e_j+1)(e_j - e_j+1)^T.
 
-    J is tridiagonal, symmetric positive definite (an M-matrix): the Thomas algorithm needs no
-    pivoting. Assembly and forward elimination are one pass; ``dwork`` is scratch.
+    J is tridiagonal, symmetric positive definite (an M-matrix): Gaussian elimination needs no
+    pivoting. It runs from both ends towards the middle row (a twisted factorization), so the
+    two halves' recurrences, each a chain of dependent divisions, overlap; assembly and
+    elimination are one pass, and ``dwork`` keeps the reciprocal pivots for the
+    back-substitution.
     """
     n = dvec.shape[0]
-    dwork[0] = dvec[0] + cj[0] if n > 1 else dvec[0]
-    du[0] = -g[0]
-    for i in range(1, n):
-        c = cj[i - 1]
-        d = dvec[i] + c
-        if i < n - 1:
-            d += cj[i]
-        m = -c / dwork[i - 1]
-        dwork[i] = d - m * -c
-        du[i] = -g[i] - m * du[i - 1]
-    du[n - 1] /= dwork[n - 1]
-    for i in range(n - 2, -1, -1):
-        du[i] = (du[i] - -cj[i] * du[i + 1]) / dwork[i]
+    mid = n // 2
+    # top rows 0..mid-1 downwards and bottom rows n-1..mid+1 upwards; s* is the coupling to
+    # the next row over the last pivot, y* the last eliminated right-hand side
+    s_top = y_top = s_bot = y_bot = 0.0
+    for k in range(mid):
+        c_up = cj[k - 1] if k > 0 else 0.0
+        c_dn = cj[k]
+        inv = 1.0 / (dvec[k] + c_up + c_dn - c_up * s_top)
+        y_top = s_top * y_top - g[k]
+        dwork[k] = inv
+        du[k] = y_top
+        s_top = c_dn * inv
+        j = n - 1 - k
+        if j > mid:
+            c_up = cj[j - 1]
+            c_dn = cj[j] if j < n - 1 else 0.0
+            inv = 1.0 / (dvec[j] + c_up + c_dn - c_dn * s_bot)
+            y_bot = s_bot * y_bot - g[j]
+            dwork[j] = inv
+            du[j] = y_bot
+            s_bot = c_up * inv
+    c_up = cj[mid - 1] if mid > 0 else 0.0
+    c_dn = cj[mid] if mid < n - 1 else 0.0
+    du[mid] = ((s_top * y_top + s_bot * y_bot - g[mid])
+               / (dvec[mid] + c_up + c_dn - c_up * s_top - c_dn * s_bot))
+    for k in range(1, mid + 1):  # mid >= n - 1 - mid
+        i = mid - k
+        du[i] = (du[i] + cj[i] * du[i + 1]) * dwork[i]
+        j = mid + k
+        if j < n:
+            du[j] = (du[j] + cj[j - 1] * du[j - 1]) * dwork[j]
 
 
 #: Shortest step the error control may take, as a fraction of the nominal step.
@@ -851,6 +873,7 @@ def _newton(u, s, cp, fr_arrays, w, scratch, max_iter, stats):
             return NEWTON_FAILED
         it += 1
         _solve_tridiagonal(diag, cj, g, dtmp, du)
+        alpha = 1.0
         if it <= FAST_ITERATIONS and band > 0.0:
             # a coupler whose deflection speed would jump across its whole steep band
             # most likely ends inside it: solve again with that coupler on the band's line
@@ -868,11 +891,8 @@ def _newton(u, s, cp, fr_arrays, w, scratch, max_iter, stats):
                     again = True
             if again:
                 _solve_tridiagonal(diag, cj, g, dtmp, du)
-        if it <= FAST_ITERATIONS:
-            # cheap safeguards, enough for almost every step: do not let a coupler jump
-            # across its whole steep band, nor a vehicle across its standstill band
-            alpha = 1.0
-            if band > 0.0:
+                # cheap safeguard: do not let a coupler jump across its whole steep band
+                # (without a coupler about to, none can: alpha stays 1)
                 for j in range(nc):
                     r0 = u[j] - u[j + 1]
                     r1 = r0 + du[j] - du[j + 1]
@@ -880,6 +900,9 @@ def _newton(u, s, cp, fr_arrays, w, scratch, max_iter, stats):
                         a = r0 / (r0 - r1)
                         if a < alpha:
                             alpha = a
+        if it <= FAST_ITERATIONS:
+            # cheap safeguards, enough for almost every step: the band's above, and no
+            # vehicle's jump across its standstill band
             if alpha < 1.0:
                 stats.band_cutbacks += 1
             for i in range(n):

@@ -163,3 +163,31 @@ def test_error_estimate_is_exact_for_a_cubic_speed_history(w):
     ratio = _error_ratio(np.array([u]), np.array([0.0]), np.array([0.0]), np.array([1.0]),
                          none, none, hs, 0.0, 1.0)
     assert ratio == pytest.approx(error, rel=1e-9)
+
+
+@pytest.mark.parametrize("ratio", [1.05, 1.5, 2.0, 4.0])
+def test_retry_after_a_rejection_holds_the_tolerance_at_a_kink(ratio):
+    # a kink inside the step (an Eq. 3 switch, an end stop) makes the local error fall in
+    # proportion to the step, smooth motion with its cube: the retry must hold the tolerance
+    # in both cases, else the controller cycles between rejection and retry
+    from ltd_brake_ros.physics.kernel import MAX_SHRINK, _step_factor
+
+    for order in (1.0, 2.0):
+        f = _step_factor(ratio, order, True, False)
+        assert MAX_SHRINK <= f < 1.0
+        assert ratio * f <= 0.95          # first order in the step: accepted
+        assert ratio * f ** (order + 1.0) <= 0.95  # smooth: accepted
+    # beyond MAX_SHRINK's reach the retry is as short as allowed
+    assert _step_factor(50.0, 2.0, True, False) == MAX_SHRINK
+
+
+def test_step_growth_is_bounded_and_waits_after_a_rejection():
+    from ltd_brake_ros.physics.kernel import MAX_GROWTH, _step_factor
+
+    assert _step_factor(0.0, 2.0, False, False) == MAX_GROWTH    # no estimate yet
+    assert _step_factor(1e-6, 2.0, False, False) == MAX_GROWTH
+    # grows to where a smooth (third-order) error reaches 90 % of the tolerance
+    assert 0.5 * _step_factor(0.5, 2.0, False, False) ** 3 == pytest.approx(0.9 ** 3)
+    assert _step_factor(0.95, 2.0, False, False) < 1.0         # close to the limit: shrinks
+    assert _step_factor(0.1, 2.0, False, True) == 1.0           # right after a rejection
+    assert _step_factor(0.99, 2.0, False, True) < 1.0

@@ -226,8 +226,8 @@ def karwatzki_speed_factor(speed_m_s):
         [1/(m/s)].
     """
     v = KMH_PER_MS * speed_m_s
-    den = 5.0 * v + 100.0
-    return 0.6 * (v + 100.0) / den, -240.0 / (den * den) * KMH_PER_MS
+    inv = 1.0 / (5.0 * v + 100.0)
+    return 0.6 * (v + 100.0) * inv, -240.0 * inv * inv * KMH_PER_MS
 
 
 @jit

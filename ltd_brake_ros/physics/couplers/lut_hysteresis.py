@@ -32,8 +32,9 @@ ID = 0
 #: slopes of the loading and unloading curves over the segment that starts at each point
 #: [N/m] (the last point repeats the last segment's), computed once rather than per force.
 DEFLECTION, LOADING, UNLOADING, LOADING_SLOPE, UNLOADING_SLOPE = 0, 1, 2, 3, 4
-#: Entry of ``CouplerArrays.coef``: the threshold speed v_th [m/s].
-V_TH = 0
+#: Entries of ``CouplerArrays.coef``: the threshold speed v_th [m/s] and its reciprocal
+#: [s/m] (the force multiplies by it rather than divide).
+V_TH, INV_V_TH = 0, 1
 
 
 @dataclass(frozen=True)
@@ -176,8 +177,8 @@ def compile(params: Params) -> CouplerArrays:  # noqa: A001 - the contract's nam
     Returns
     -------
     CouplerArrays
-        ``table`` from :func:`table_of`; ``coef``
-        [v_th]; the valid range is the table's.
+        ``table`` from :func:`table_of`; ``coef`` entries :data:`V_TH`,
+        :data:`INV_V_TH`; the valid range is the table's.
 
     Raises
     ------
@@ -186,7 +187,8 @@ def compile(params: Params) -> CouplerArrays:  # noqa: A001 - the contract's nam
     """
     check(params)
     table = table_of(*curves(params))
-    return CouplerArrays(ID, table, np.array([float(params.v_th_m_s)]), float(params.v_th_m_s),
+    v_th = float(params.v_th_m_s)
+    return CouplerArrays(ID, table, np.array([v_th, 1.0 / v_th]), v_th,
                          float(table[DEFLECTION, 0]), float(table[DEFLECTION, -1]))
 
 
@@ -321,12 +323,12 @@ def _check_curves(d, columns: dict, key: dict, mm: list) -> None:
 @jit_inline
 def force(table, coef, defl_m, rate_m_s):
     """Coupler force [N, draft positive], d/d(deflection) [N/m] and d/d(rate) [N/(m/s)]."""
-    f, kd, kr, _seg, _band = eq3(table, coef[V_TH], defl_m, rate_m_s)
+    f, kd, kr, _seg, _band = eq3(table, coef[INV_V_TH], defl_m, rate_m_s)
     return f, kd, kr
 
 
 @jit_inline
-def eq3(table, v_th, defl_m, rate_m_s):
+def eq3(table, inv_v_th, defl_m, rate_m_s):
     """Coupler force with hysteresis, Eq. 3, and its partial derivatives.
 
     F = (F_L + F_U)/2 + |F_L - F_U|/2 * clip(rate / v_th, -1, 1), linear interpolation in the
@@ -336,8 +338,8 @@ def eq3(table, v_th, defl_m, rate_m_s):
     ----------
     table : ndarray, shape (5, m)
         From :func:`table_of`.
-    v_th : float
-        Threshold speed [m/s].
+    inv_v_th : float
+        1 / v_th, the reciprocal of the threshold speed [s/m].
     defl_m : float
         Deflection x_front - x_rear, draft positive [m].
     rate_m_s : float
@@ -365,7 +367,7 @@ def eq3(table, v_th, defl_m, rate_m_s):
     fl = table[LOADING, k] + sl * (defl_m - x0)
     fu = table[UNLOADING, k] + su * (defl_m - x0)
     diff = fl - fu
-    r = rate_m_s / v_th
+    r = rate_m_s * inv_v_th
     if r > 1.0:
         c, band = 1.0, 1
     elif r < -1.0:
@@ -375,7 +377,7 @@ def eq3(table, v_th, defl_m, rate_m_s):
     sgn = 1.0 if diff >= 0.0 else -1.0
     f = 0.5 * (fl + fu) + 0.5 * abs(diff) * c
     dfd = 0.5 * (sl + su) + 0.5 * sgn * (sl - su) * c
-    dfr = 0.5 * abs(diff) / v_th if band == 0 else 0.0
+    dfr = 0.5 * abs(diff) * inv_v_th if band == 0 else 0.0
     return f, dfd, dfr, seg, band
 
 
@@ -397,4 +399,4 @@ def coupler_force(defl_m, rate_m_s, xs, f_load, f_unload, v_th):
         As :func:`eq3`.
     """
     table = table_of(xs, f_load, f_unload)
-    return eq3(table, float(v_th), float(defl_m), float(rate_m_s))
+    return eq3(table, 1.0 / float(v_th), float(defl_m), float(rate_m_s))
