@@ -555,6 +555,46 @@ def _solve_tridiagonal(dvec, cj, g, dwork, du):
 MIN_STEP_FRACTION = 2.0 ** -12
 #: Safety factor and the bounds of the step-size change after an error estimate.
 SAFETY, MAX_GROWTH, MAX_SHRINK = 0.9, 2.0, 0.2
+#: Step-size factor after a Newton iteration that did not converge.
+NEWTON_SHRINK = 0.25
+
+
+@jit
+def _step_factor(ratio, order, rejected, after_rejection):
+    """Factor on the step just tried that gives the next one (step-size controller).
+
+    A rejected step is retried ``SAFETY / ratio`` as long (at least :data:`MAX_SHRINK`): an
+    estimate beyond the tolerance is almost always a kink inside the step (a coupler switching
+    between its Eq. 3 curves or reaching an end stop), where the local error falls in
+    proportion to the step (measured on long trains: exponent 0.75-0.8), not with its cube as
+    in smooth motion; the smooth rule ``ratio ** (-1 / (order + 1))`` would retry too long
+    and be rejected again. After an accepted step the next grows by the smooth rule, at most
+    :data:`MAX_GROWTH`, and not at all straight after a rejection (no accept/reject cycle).
+
+    Parameters
+    ----------
+    ratio : float
+        Error estimate over the tolerance (0: no estimate).
+    order : float
+        Order of the step's method (1 after a restart, else 2).
+    rejected : bool
+        The step was rejected.
+    after_rejection : bool
+        The step was the retry of a rejected one.
+
+    Returns
+    -------
+    float
+        Next step over this one.
+    """
+    if rejected:
+        return max(MAX_SHRINK, SAFETY / ratio)
+    grow = MAX_GROWTH
+    if ratio > 0.0:
+        grow = min(MAX_GROWTH, SAFETY * ratio ** (-1.0 / (order + 1.0)))
+    if after_rejection:
+        grow = min(grow, 1.0)
+    return grow
 
 
 @jit
@@ -600,7 +640,7 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
     estimate (:func:`_error_ratio`) holds the tolerance, else in shorter sub-steps: a step
     whose estimate exceeds it (or whose Newton iteration does not converge) is rejected and
     retried shorter, and after each accepted step the next may grow by up to
-    :data:`MAX_GROWTH`, never beyond the nominal step. Sub-steps end exactly on the nominal
+    :data:`MAX_GROWTH`, never beyond the nominal step (:func:`_step_factor`). Sub-steps end exactly on the nominal
     step's end and the proposal carries over in ``state.step_control``: the same nominal
     steps give the same result however they are grouped into calls. With tolerance 0 every
     nominal step is one step.
@@ -771,21 +811,16 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
                 ftr[:] = save_ftr
                 stats.rejected_steps += 1
                 if code == NEWTON_FAILED:
-                    shrink = 0.25
+                    shrink = NEWTON_SHRINK
                 else:
-                    shrink = max(MAX_SHRINK, SAFETY * ratio ** (-1.0 / (order + 1.0)))
+                    shrink = _step_factor(ratio, order, True, retried)
                 control[NEXT_STEP] = max(hs * shrink, h_min)
                 retried = True
                 continue
             # ---- accept
             if adaptive:
-                grow = MAX_GROWTH
-                if ratio > 0.0:
-                    grow = min(MAX_GROWTH, SAFETY * ratio ** (-1.0 / (order + 1.0)))
-                if retried:
-                    grow = min(grow, 1.0)  # no growth straight after a rejection
+                control[NEXT_STEP] = min(hs * _step_factor(ratio, order, False, retried), h)
                 retried = False
-                control[NEXT_STEP] = min(hs * grow, h)
             stats.steps += 1
             if stats.smallest_step_s == 0.0 or hs < stats.smallest_step_s:
                 stats.smallest_step_s = hs
