@@ -18,8 +18,8 @@ def dispatch():
     return value()
 
 if sys.argv[1] == "refresh":
-    from ltd_brake_ros.physics.brakes import refresh_stale_cache, sources_stamp
-    refresh_stale_cache(dispatch, sources_stamp(sys.argv[2]))
+    from ltd_brake_ros.physics.brakes import refresh_stale_caches, sources_stamp
+    assert refresh_stale_caches(globals(), sources_stamp(sys.argv[2])) == 1
 print(dispatch())
 """
 

@@ -140,10 +140,31 @@ def refresh_stale_cache(dispatcher, stamp: str | None = None) -> bool:
     return True
 
 
+def refresh_stale_caches(namespace: dict, stamp: str | None = None) -> int:
+    """:func:`refresh_stale_cache` for every cached function a module defines.
+
+    Parameters
+    ----------
+    namespace : dict
+        The module's ``globals()`` (or ``vars(module)``).
+    stamp : str, optional
+        As for :func:`refresh_stale_cache`, computed once.
+
+    Returns
+    -------
+    int
+        How many caches were emptied.
+    """
+    stamp = stamp if stamp is not None else sources_stamp()
+    name = namespace.get("__name__")
+    return sum(refresh_stale_cache(f, stamp) for f in list(namespace.values())
+               if getattr(getattr(f, "py_func", None), "__module__", None) == name)
+
+
 _STAMP = sources_stamp()
-for _dispatcher in (advance, *(m.advance for m in MODELS.values())):
-    refresh_stale_cache(_dispatcher, _STAMP)
-del _dispatcher
+for _namespace in (globals(), *(vars(m) for m in MODELS.values())):
+    refresh_stale_caches(_namespace, _STAMP)
+del _namespace
 
 
 def model_of(params) -> Any:
