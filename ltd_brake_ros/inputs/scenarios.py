@@ -1,7 +1,9 @@
 """The scenario catalogue: the runs of the paper's Tables 1-2."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import functools
+import os
+from dataclasses import dataclass, field, replace
 
 from .consist import Consist, load_consist
 from .schema import Fields, InputError, config_dir, load_yaml
@@ -42,14 +44,21 @@ def load_scenarios() -> dict[int, Scenario]:
     dict of int to Scenario
     """
     p = config_dir() / "scenarios.yaml"
-    data = Fields(load_yaml(p), str(p)).data.get("scenarios") or {}
+    return {k: replace(s, paper=dict(s.paper))
+            for k, s in _catalogue(str(p), os.stat(p).st_mtime_ns).items()}
+
+
+@functools.lru_cache(maxsize=2)
+def _catalogue(p: str, mtime_ns: int) -> dict[int, Scenario]:
+    """The catalogue parsed once per version of the file; callers copy the mutable parts."""
+    data = Fields(load_yaml(p), p).data.get("scenarios") or {}
     out = {}
     if not isinstance(data, dict):
         raise InputError(p, "scenarios", "must be a mapping of scenario number to run")
     for key, row in data.items():
         if isinstance(key, bool) or not isinstance(key, int):
             raise InputError(p, f"scenarios.{key}", "must be a scenario number")
-        f = Fields(row, str(p), f"scenarios.{key}")
+        f = Fields(row, p, f"scenarios.{key}")
         paper = {k: v for k, v in row.items() if k not in ("consist", "speed_kmh")}
         out[int(key)] = Scenario(int(key), f.string("consist"), f.number("speed_kmh", lo=0.0), paper)
     return out
