@@ -4,7 +4,6 @@ from __future__ import annotations
 import argparse
 import json
 
-from ..inputs import InputError
 from .options import CONVENTIONS, add_model_options, load_model, parse_scenarios, positive_int
 
 
@@ -85,7 +84,7 @@ def targets_lines(rows) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     """Print the paper's Tables 1-2 beside our results."""
-    from ..inputs import load_scenarios
+    from ..inputs import InputError, load_scenarios
     from ..studies.parallel import default_workers
     from ..studies.runs import validate
 
