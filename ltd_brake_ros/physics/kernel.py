@@ -466,17 +466,17 @@ def _residual(u, s, cp, fr_arrays, w):
     n = u.shape[0]
     nc = n - 1
     inv_bh = 1.0 / bh
-    for j in range(nc):
-        rate = u[j] - u[j + 1]
-        d = xhat[j] - xhat[j + 1] + bh * rate
-        f, kd, kr = couplers.force(model, table, coef, d, rate)
-        fc[j] = f
-        cj[j] = bh * kd + kr
     converged = True
     for i in range(n):
         g0 = meff[i] * (u[i] - vhat[i]) * inv_bh - fx[i]
         if i < nc:
-            g0 += fc[i]
+            # the coupler behind vehicle i (one pass: its force is at hand for both ends)
+            rate = u[i] - u[i + 1]
+            d = xhat[i] - xhat[i + 1] + bh * rate
+            f, kd, kr = couplers.force(model, table, coef, d, rate)
+            fc[i] = f
+            cj[i] = bh * kd + kr
+            g0 += f
         if i > 0:
             g0 -= fc[i - 1]
         spd = abs(u[i])
