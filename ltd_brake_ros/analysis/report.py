@@ -19,9 +19,9 @@ Topics used (any namespace; the first one holding ``vehicles/speed`` is analysed
 brake_cylinder_pressure``
 ==============================  ===========================================================
 
-Definitions: the emergency command is the first ``brake_command`` that is true (its record
-time), and the speed at it the head's, interpolated between samples; the train has stopped at
-the first recorded ``vehicles/speed`` sample at or after the command in which no vehicle moves
+Definitions: the emergency command is the first ``brake_command`` that is true, or
+``driver_brake_valve`` in its ``emergency`` position (its record time), and the speed at it
+the head's, interpolated between samples; the train has stopped at the first recorded ``vehicles/speed`` sample at or after the command in which no vehicle moves
 forward faster than ``STANDSTILL_M_S`` (1 mm/s, as the simulator counts a stop: a vehicle
 pulled back a few centimetres as the couplers relax has stopped); the stopping distance is
 the head's position then minus its position at the command (interpolated between samples).

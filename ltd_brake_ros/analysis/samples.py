@@ -13,13 +13,14 @@ from typing import Iterator
 
 import numpy as np
 
-from ..recording.cdr import decode_bool, decode_float64_array
+from ..recording.cdr import decode_bool, decode_float64_array, decode_string
 from ..recording.reader import BagError, TruncatedBagWarning, read_bag
 
 __all__ = ["ARRAYS", "BRAKE_COMMAND", "plant_samples"]
 
 F64_ARRAY = "std_msgs/msg/Float64MultiArray"
 BOOL = "std_msgs/msg/Bool"
+STRING = "std_msgs/msg/String"
 #: Array topics under the plant's namespace: name -> element ("vehicle" or "coupler").
 ARRAYS = {"vehicles/speed": "vehicle", "vehicles/position": "vehicle",
           "vehicles/brake_force": "vehicle", "vehicles/traction_force": "vehicle",
@@ -28,6 +29,9 @@ ARRAYS = {"vehicles/speed": "vehicle", "vehicles/position": "vehicle",
           "vehicles/brake_pipe_pressure": "vehicle", "vehicles/brake_cylinder_pressure": "vehicle"}
 #: The emergency command topic under the plant's namespace.
 BRAKE_COMMAND = "brake_command"
+#: The driver's brake valve topic (std_msgs/String); its ``emergency`` position counts as
+#: a true :data:`BRAKE_COMMAND`.
+DRIVER_BRAKE_VALVE = "driver_brake_valve"
 
 
 class _Train:
@@ -76,12 +80,15 @@ def plant_samples(path, namespace: str) -> Iterator[tuple[str, float, int, objec
     """
     wanted = {f"{namespace}/{name}": (name, element) for name, element in ARRAYS.items()}
     command = f"{namespace}/{BRAKE_COMMAND}"
+    valve = f"{namespace}/{DRIVER_BRAKE_VALVE}"
     train = _Train(path)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", TruncatedBagWarning)
         for topic, msg_type, log_ns, data in read_bag(path):
             if topic == command:
                 expected = BOOL
+            elif topic == valve:
+                expected = STRING
             elif topic in wanted:
                 expected = F64_ARRAY
             else:
@@ -91,12 +98,18 @@ def plant_samples(path, namespace: str) -> Iterator[tuple[str, float, int, objec
                 raise BagError(path, topic, f"recorded as {msg_type or 'an unnamed type'}, not "
                                             f"{expected}: not the plant's topic")
             try:
-                value = decode_bool(data) if topic == command else decode_float64_array(data)
+                value = decode_bool(data) if topic == command else decode_string(data) \
+                    if topic == valve else decode_float64_array(data)
             except ValueError as exc:
                 raise BagError(path, topic, f"message at t = {t:.3f} s does not decode: "
                                             f"{exc}") from None
             if topic == command:
                 yield BRAKE_COMMAND, t, log_ns, value
+                continue
+            if topic == valve:
+                # the valve's emergency position is the same command as brake_command = true
+                if value.strip() == "emergency":
+                    yield BRAKE_COMMAND, t, log_ns, True
                 continue
             name, element = wanted[topic]
             if not np.isfinite(value).all():

@@ -294,17 +294,14 @@ class _Recording:
         return self
 
     def _state(self, snap) -> None:
-        from ..recording.cdr_encode import encode_bool, encode_float64
-        from ..recording.plant_topics import COMMAND_TOPICS, qualify
+        from ..recording.plant_topics import command_messages, qualify
 
         t_ns = round(snap.time_s * 1e9)  # the node's stamp of a state
         steps = self._script.steps
-        topic_of = {name: topic for topic, (_, name) in COMMAND_TOPICS.items()}
         # the commands the next chunk applies, then the state they start from
         while self._next < len(steps) and steps[self._next][0] <= snap.time_s + 1e-9:
-            for name, value in steps[self._next][1].items():
-                self._rec.write(qualify("/", topic_of[name]), encode_bool(value)
-                                if name == "emergency" else encode_float64(value), t_ns)
+            for topic, data in command_messages(steps[self._next][1]):
+                self._rec.write(qualify("/", topic), data, t_ns)
             self._next += 1
         for topic, data in self._encoder.encode(snap, t_ns):
             self._rec.write(qualify("/", topic), data, t_ns)

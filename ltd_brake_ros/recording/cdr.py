@@ -84,6 +84,31 @@ def decode_bool(data: bytes) -> bool:
     return data[4] != 0
 
 
+def decode_string(data: bytes) -> str:
+    """Value of a CDR-serialized ``std_msgs/msg/String``.
+
+    Parameters
+    ----------
+    data : bytes
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    ValueError
+        ``data`` is not such a message.
+    """
+    if len(data) < 8:
+        raise ValueError(f"{len(data)} bytes is too short for a String")
+    end = "<" if data[1] & 1 else ">"
+    (length,) = struct.unpack_from(end + "I", data, 4)
+    if length < 1 or 8 + length > len(data):
+        raise ValueError(f"a String of {length} bytes does not fit in {len(data)} bytes")
+    return bytes(data[8:7 + length]).decode(errors="replace")  # without the NUL
+
+
 def decode_joint_state(data: bytes) -> tuple[int, list[str], np.ndarray, np.ndarray, np.ndarray]:
     """Stamp, names and values of a CDR-serialized ``sensor_msgs/msg/JointState``.
 

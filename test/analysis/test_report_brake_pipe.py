@@ -154,3 +154,27 @@ def test_profiles_follow_the_emergency_after_a_service_application(tmp_path):
     assert np.abs(profiles[1] - profiles[0]).max() > PIPE_ONSET_PA
     assert profiles[-1].max() < profiles[0].min()  # vented everywhere at the end
     assert rep.tail_fill_time_s is not None and rep.tail_fill_time_s > 0.0
+
+
+def test_driver_brake_valve_script_is_recorded_and_its_emergency_counts(tmp_path):
+    from ltd_brake_ros.analysis.samples import BRAKE_COMMAND, plant_samples
+    from ltd_brake_ros.recording.cdr import decode_string
+    from ltd_brake_ros.recording.reader import read_bag
+
+    script = tmp_path / "valve.yaml"
+    script.write_text("duration_s: 30.0\ncommands:\n"
+                      "  - {t_s: 0.0, driver_brake_valve: service}\n"
+                      "  - {t_s: 4.0, driver_brake_valve: lap}\n"
+                      "  - {t_s: 8.0, driver_brake_valve: release_overcharge}\n"
+                      "  - {t_s: 16.0, driver_brake_valve: emergency}\n")
+    folder = tmp_path / "run"
+    assert main(["simulate", "--consist", CONSIST, "--speed-kmh", "60", "--params", PIPE_PARAMS,
+                 "--commands", str(script), "--record", str(folder), "--json"]) == 0
+    # lap changes no input, so it sends nothing; the other positions go out by name, in order
+    sent = [(round(log_ns * 1e-9, 3), decode_string(data))
+            for topic, _, log_ns, data in read_bag(folder) if topic == "/driver_brake_valve"]
+    assert sent == [(0.0, "service"), (8.0, "release_overcharge"), (16.0, "emergency")]
+    commands = [t for name, t, _, value in plant_samples(folder, "") if name == BRAKE_COMMAND
+                and value]
+    assert commands and commands[0] == pytest.approx(16.0)
+    assert analyse(folder).command_time_s == pytest.approx(16.0)
