@@ -297,7 +297,7 @@ class _Step(NamedTuple):
 
     xhat: np.ndarray
     vhat: np.ndarray
-    bh: float
+    bh: np.ndarray  # one element: beta * step [s] (an array, so the bundle is built once)
     fx: np.ndarray
     meff: np.ndarray
     tol: np.ndarray
@@ -458,7 +458,7 @@ def _residual(u, s, cp, fr_arrays, w):
     coupler's d(force)/d(rate); returns True when every |g_i| is within the tolerance.
     """
     # bundle fields bound once: the loops below then touch plain arrays only
-    xhat, vhat, bh, fx, meff, tol = s.xhat, s.vhat, s.bh, s.fx, s.meff, s.tol
+    xhat, vhat, bh, fx, meff, tol = s.xhat, s.vhat, s.bh[0], s.fx, s.meff, s.tol
     res_a, fa_scale, rcurve, resist, v_stick = s.res_a, s.fa_scale, s.rcurve, s.resist, s.v_stick
     kind = fr_arrays.kind
     model, table, coef = cp.model, cp.table, cp.coef
@@ -737,6 +737,9 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
     save_kind = np.empty_like(brake_state.level_kind)
     save_next = np.empty_like(brake_state.next_event)
     save_extra, save_ftr = np.empty_like(brake_state.extra), np.empty_like(ftr)
+    bh_step = np.empty(1)
+    s = _Step(xhat, vhat, bh_step, fx, train.meff_kg, tol, res_a, fa_scale, rcurve,
+              train.resist, v_stick)
     retried = False  # the step being tried follows a rejection
     for _step in range(nsteps):
         t_end = t + h
@@ -786,8 +789,7 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
                 u[i] = v[i] + w_ratio * (v[i] - vp[i])
                 if u[i] * v[i] <= 0.0:
                     u[i] = v[i]  # never extrapolate through standstill
-            s = _Step(xhat, vhat, bh, fx, train.meff_kg, tol, res_a, fa_scale, rcurve,
-                      train.resist, v_stick)
+            bh_step[0] = bh
             code = _newton(u, s, cp, fr_arrays, w, scratch, options.max_newton_iter, stats)
             if code == NOT_FINITE:
                 return NOT_FINITE, tc, hp, _step
@@ -891,7 +893,7 @@ def _newton(u, s, cp, fr_arrays, w, scratch, max_iter, stats):
     g, diag, cj, fc = w.g, w.diag, w.cj, w.fc
     ut, du, dtmp, trial = scratch.ut, scratch.du, scratch.dwork, scratch.trial
     cp_model, cp_table, cp_coef, band = cp.model, cp.table, cp.coef, cp.band_m_s
-    xhat, bh, v_stick = s.xhat, s.bh, s.v_stick
+    xhat, bh, v_stick = s.xhat, s.bh[0], s.v_stick
     n = u.shape[0]
     nc = n - 1
     it = 0
@@ -981,3 +983,8 @@ def bind_run_steps(*args):
     if not HAVE_NUMBA:  # pragma: no cover - plain Python has no dispatch to skip
         return run_steps
     return run_steps.compile(tuple(run_steps.typeof_pyval(a) for a in args))
+
+
+# run_steps compiles the brake and coupler models into itself: numba's cache of it must go when
+# any of their sources changes, not only this file
+brakes.refresh_stale_caches(globals(), brakes.SOURCES_STAMP)

@@ -69,3 +69,14 @@ def test_stamp_follows_contents_and_names(tmp_path):
 
 def test_functions_without_a_disk_cache_are_left_alone():
     assert refresh_stale_cache(len) is False
+
+
+def test_the_kernel_step_loop_carries_the_stamp_of_the_models_it_compiles_in():
+    from pathlib import Path
+
+    from ltd_brake_ros.physics import brakes, kernel
+
+    cache_path = getattr(getattr(kernel.run_steps, "_cache", None), "cache_path", None)
+    assert cache_path is not None, "run_steps must be compiled with a disk cache"
+    stamp = Path(cache_path) / "kernel.run_steps.sources"
+    assert stamp.read_text() == brakes.SOURCES_STAMP

@@ -161,9 +161,10 @@ def refresh_stale_caches(namespace: dict, stamp: str | None = None) -> int:
                if getattr(getattr(f, "py_func", None), "__module__", None) == name)
 
 
-_STAMP = sources_stamp()
+#: :func:`sources_stamp` of this installation, computed once at import.
+SOURCES_STAMP = sources_stamp()
 for _namespace in (globals(), *(vars(m) for m in MODELS.values())):
-    refresh_stale_caches(_namespace, _STAMP)
+    refresh_stale_caches(_namespace, SOURCES_STAMP)
 del _namespace
 
 
