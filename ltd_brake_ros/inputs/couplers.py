@@ -1,6 +1,7 @@
 """Coupler files: the coupler model they name and its parameters."""
 from __future__ import annotations
 
+import functools
 import os
 from dataclasses import replace
 
@@ -41,14 +42,25 @@ def load_coupler_lut(path: str | os.PathLike | None = None, v_th_mm_s: float | N
         Naming the file (or ``v_th_mm_s``), the field and the reason.
     """
     p = resolve_config_path(path or "couplers/buffer_hook_pugi.yaml")
-    f = Fields(load_yaml(p), str(p))
+    try:
+        mtime_ns = os.stat(p).st_mtime_ns
+    except OSError:
+        mtime_ns = -1  # load_yaml names the file and the reason
+    return _load(str(p), mtime_ns, v_th_mm_s)
+
+
+@functools.lru_cache(maxsize=8)
+def _load(p: str, mtime_ns: int, v_th_mm_s: float | None):
+    """:func:`load_coupler_lut` of one version of a file (the parameters are immutable; a
+    simulator built without a table reads the shipped one)."""
+    f = Fields(load_yaml(p), p)
     name = f.string("model", couplers.DEFAULT_MODEL, choices=tuple(couplers.MODELS))
     if v_th_mm_s is not None and name != lut_hysteresis.NAME:
         raise InputError("v_th_mm_s", "", f"applies to {lut_hysteresis.NAME} couplers only; "
                          f"{p} holds a {name} coupler")
     model = couplers.MODELS[name]
     f.reject_unknown(file_keys(model.Params) | {"model", "name", "description"})
-    params = params_from_fields(model.Params, f, source=str(p))
+    params = params_from_fields(model.Params, f, source=p)
     if v_th_mm_s is not None:
         spec = specs(CouplerLUT)["v_th_m_s"]
         reason = out_of_range(float(v_th_mm_s), spec.lo, spec.hi, spec.lo_open)

@@ -982,7 +982,37 @@ def bind_run_steps(*args):
     """
     if not HAVE_NUMBA:  # pragma: no cover - plain Python has no dispatch to skip
         return run_steps
-    return run_steps.compile(tuple(run_steps.typeof_pyval(a) for a in args))
+    key = _layout_key(args)
+    bound = _BOUND.get(key) if key is not None else None
+    if bound is None:
+        bound = run_steps.compile(tuple(run_steps.typeof_pyval(a) for a in args))
+        if key is not None:
+            _BOUND[key] = bound
+    return bound
+
+
+#: :func:`bind_run_steps` by the layout of its arguments (numba types them slowly: ~1 ms).
+_BOUND: dict = {}
+
+
+def _layout_key(value):
+    """What numba's type of ``value`` depends on, built without numba (None: not known here).
+
+    Arrays: dtype, dimension, contiguity, writeability and alignment (numba's layout and
+    read-only flag); named tuples: their class and fields'; plain bool, int and float: the
+    class (numba types every Python int as int64, every float as float64).
+    """
+    if isinstance(value, np.ndarray):
+        f = value.flags
+        return (value.dtype, value.ndim, f.c_contiguous, f.f_contiguous, f.writeable, f.aligned)
+    if isinstance(value, tuple):
+        keys = tuple(_layout_key(v) for v in value)
+        return None if None in keys else (type(value), keys)
+    if type(value) in (bool, float) or (type(value) is int and -2**63 <= value < 2**63):
+        return type(value)
+    if isinstance(value, np.void):  # a record of a structured array
+        return (np.void, value.dtype)
+    return None
 
 
 # run_steps compiles the brake and coupler models into itself: numba's cache of it must go when

@@ -1,0 +1,36 @@
+"""The kernel bound once per argument layout: the same compiled loop for the same layout, a
+new one for any difference numba types differently."""
+from __future__ import annotations
+
+import numpy as np
+
+from ltd_brake_ros.inputs import get_scenario
+from ltd_brake_ros.physics import kernel
+from ltd_brake_ros.simulator import Commands, Simulator
+
+
+def test_layout_key_tells_apart_what_numba_types_apart():
+    a = np.zeros(5)
+    key = kernel._layout_key
+    assert key(a) == key(np.ones(5)) == key(np.zeros(7))  # values and length do not matter
+    ro = np.zeros(5)
+    ro.flags.writeable = False
+    others = [np.zeros(5, np.float32), np.zeros((5, 1)), np.zeros(10)[::2], ro,
+              np.zeros(5, np.int64)]
+    assert len({key(a), *(key(b) for b in others)}) == 1 + len(others)
+    assert key((a, 1.0, True, 3)) == key((np.ones(2), 2.0, False, 4))
+    assert key((a, 1.0)) != key((a, 1))  # float64 against int64
+    assert key((a, object())) is None  # unknown to the key: numba types it
+
+
+def test_two_trains_of_one_layout_share_the_bound_kernel_and_their_results():
+    sc = get_scenario(6)
+    first, second = Simulator(sc.consist(), sc.speed_kmh), Simulator(sc.consist(), 60.0)
+    assert first._run_steps is second._run_steps
+    for sim in (first, second):
+        sim.advance(2.0, Commands(emergency=True))
+    fresh = Simulator(sc.consist(), 60.0)
+    kernel._BOUND.clear()
+    fresh._bind_kernel()  # typed anew by numba
+    fresh.advance(2.0, Commands(emergency=True))
+    np.testing.assert_array_equal(fresh.snapshot().speed_m_s, second.snapshot().speed_m_s)
