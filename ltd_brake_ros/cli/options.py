@@ -182,3 +182,26 @@ def positive_int(value: int | None, option: str) -> int | None:
 
         raise InputError("command line", option, f"must be at least 1, got {value}")
     return value
+
+
+def json_by_key(document: dict) -> str:
+    """A JSON object with one top-level key per line, its value compact.
+
+    As readable as ``indent=2`` for a summary, and written by the json module's C encoder
+    (indentation makes it fall back to Python: four times slower on a run's summary).
+
+    Parameters
+    ----------
+    document : dict
+        JSON-serialisable, string keys.
+
+    Returns
+    -------
+    str
+    """
+    import json
+
+    if not document:
+        return "{}"
+    return "{\n" + ",\n".join(f"  {json.dumps(str(k))}: {json.dumps(v)}"
+                              for k, v in document.items()) + "\n}"

@@ -2,9 +2,8 @@
 from __future__ import annotations
 
 import argparse
-import json
 
-from .options import CONVENTIONS, add_run_spec_options, run_spec
+from .options import CONVENTIONS, add_run_spec_options, json_by_key, run_spec
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -83,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
         out["couplers_out_of_lut"] = [dict(e.detail, time_s=e.time_s) for e in lut_events]
         out["limits_exceeded"] = _limit_events(events)
         out["verdicts"] = verdicts.as_dict()
-        print(json.dumps(out, indent=2))
+        print(json_by_key(out))
         return 0
     print(f"train            {res.consist}: {res.vehicles} vehicles, {res.train_length_m:.1f} m, "
           f"{res.train_mass_t:.0f} t")
@@ -153,7 +152,7 @@ def _run_script(args: argparse.Namespace, spec) -> int:
         "verdicts": sim.verdicts().as_dict(),
     }
     if args.json:
-        print(json.dumps(out, indent=2))
+        print(json_by_key(out))
         return 0
     print(f"train            {spec.consist.name}: {spec.consist.n} vehicles; "
           f"script {script.source}")

@@ -1,6 +1,7 @@
 """Brake-parameter files: the brake model they name and its and the friction law's values."""
 from __future__ import annotations
 
+import functools
 import os
 from typing import Any
 
@@ -48,4 +49,14 @@ def load_brake_params(path: str | os.PathLike | None = None) -> BrakeParams:
     BrakeParams
     """
     p = resolve_config_path(path or "brake_params/paper.yaml")
-    return brake_params_from_mapping(load_yaml(p), str(p))
+    try:
+        mtime_ns = os.stat(p).st_mtime_ns
+    except OSError:
+        mtime_ns = -1  # load_yaml names the file and the reason
+    return _load(str(p), mtime_ns)
+
+
+@functools.lru_cache(maxsize=8)
+def _load(p: str, mtime_ns: int) -> BrakeParams:
+    """:func:`load_brake_params` of one version of a file (the parameters are immutable)."""
+    return brake_params_from_mapping(load_yaml(p), p)
