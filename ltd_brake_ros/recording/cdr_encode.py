@@ -186,6 +186,22 @@ def encode_float64(value: float) -> bytes:
     return _HEADER + struct.pack("<d", float(value))
 
 
+def encode_string(text: str) -> bytes:
+    """A ``std_msgs/msg/String``.
+
+    Parameters
+    ----------
+    text : str
+
+    Returns
+    -------
+    bytes
+    """
+    buf = bytearray(_HEADER)
+    _string(buf, text)
+    return bytes(buf)
+
+
 def encode_clock(time_ns: int) -> bytes:
     """A ``rosgraph_msgs/msg/Clock`` holding a simulated time.
 

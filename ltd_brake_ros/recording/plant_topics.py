@@ -15,14 +15,13 @@ PlotJuggler plot by joint name.
 """
 from __future__ import annotations
 
-import struct
 from typing import Any, Mapping
 
 import numpy as np
 
 from ..inputs.commands import VALVE_FIELDS, VALVE_POSITIONS
 from .cdr_encode import (Float64ArrayEncoder, JointStateEncoder, encode_bool, encode_clock,
-                         encode_float64)
+                         encode_float64, encode_string)
 from .qos import qos_profiles_yaml
 
 __all__ = ["ARRAY_TOPICS", "STATE_TOPICS", "CLOCK_TOPIC", "COMMAND_TOPICS", "JOINT_STATE",
@@ -103,8 +102,7 @@ def command_messages(change: Mapping[str, Any]) -> list[tuple[str, bytes]]:
     for topic, (_, name) in COMMAND_TOPICS.items():
         if name == "driver_brake_valve":
             if position is not None:
-                text = position.encode() + b"\x00"  # std_msgs/String: length, bytes, NUL
-                out.append((topic, b"\x00\x01\x00\x00" + struct.pack("<I", len(text)) + text))
+                out.append((topic, encode_string(position)))
         elif name in change and (position is None or name not in valve):
             value = change[name]
             out.append((topic, encode_bool(value) if name == "emergency" else
