@@ -69,6 +69,16 @@ class PaceWindow:
 
     def __init__(self, now: float):
         self._wall, self._sim_s, self._overruns, self._rejected = now, 0.0, 0, 0
+        self._peak_lag_s = 0.0
+
+    def lag(self, lag_s: float) -> None:
+        """Note how far behind its schedule the plant is after a chunk [s wall]."""
+        self._peak_lag_s = max(self._peak_lag_s, lag_s)
+
+    def take_peak_lag(self) -> float:
+        """The largest lag noted since the previous call (0 if never behind) [s wall]."""
+        peak, self._peak_lag_s = self._peak_lag_s, 0.0
+        return peak
 
     def take_rejected(self, rejected: int) -> int:
         """Inputs rejected since the previous call, given the count since start-up."""
@@ -109,7 +119,8 @@ class PaceWindow:
 
 def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: float = 0.0,
                  window_s: float = 0.0, new_overruns: int = 0, chunks: int = 0,
-                 overruns: int = 0, real_time_factor: float = 0.0,
+                 overruns: int = 0, lag_s: float = 0.0, peak_lag_s: float = 0.0,
+                 real_time_factor: float = 0.0,
                  commands: Commands = Commands(), rejected: int = 0, new_rejected: int = 0,
                  handled: int = 0, resets: int = 0, recording: str = "off",
                  recording_error: str | None = None) -> PlantStatus:
@@ -127,6 +138,9 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
         What :meth:`PaceWindow.take` returned.
     chunks, overruns : int
         Chunks advanced and overruns since start-up.
+    lag_s, peak_lag_s : float
+        How far the plant is behind its schedule now, and at most in the window (what
+        :meth:`PaceWindow.take_peak_lag` returned) [s wall].
     real_time_factor : float
         The set real-time factor [-].
     commands : Commands
@@ -168,6 +182,8 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
         "achieved_real_time_factor": f3(achieved),
         "chunks": str(chunks),
         "chunk_overruns": str(overruns),
+        "schedule_lag_s": f3(lag_s),
+        "peak_schedule_lag_s": f3(peak_lag_s),
         "emergency_command": "true" if commands.emergency else "false",
         "brake_command_time_s": "none" if sim.command_time_s is None
         else f3(sim.command_time_s),

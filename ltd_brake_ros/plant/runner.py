@@ -4,8 +4,10 @@ One thread owns the simulator and does every advance and every publication; othe
 (a ROS executor, a test) only queue jobs (:meth:`PlantRunner.submit`) that the plant thread runs
 between two chunks. So a chunk is always advanced and published in one place and lock-step runs
 are deterministic. Free-running chunks are due at ``start + k * chunk_s / real_time_factor`` on
-the wall clock; a chunk finished after the next one was due counts as an overrun and restarts
-the schedule instead of catching up. A plant that follows another plant's clock
+the wall clock, and none runs before it is due. A plant that finishes a chunk after the next one
+was due is behind its schedule: by at most ``max_catch_up_s`` it catches up, advancing the
+chunks already due at once (a fixed-timestep loop's bounded catch-up); further behind, it counts
+an overrun and restarts the schedule from now. A plant that follows another plant's clock
 (``follow_clock``) advances instead to the times it is given (:meth:`PlantRunner.follow`), so
 several trains share one simulated time.
 
@@ -64,13 +66,22 @@ class PacingStats:
     chunks : int
         Chunks advanced and published.
     overruns : int
-        Times the plant was still busy when the next chunk was due (schedule restarted then).
+        Times the plant finished a chunk more than ``max_catch_up_s`` after the next one was
+        due (the schedule restarted then).
+    caught_up : int
+        Chunks finished after the next one was due, but within ``max_catch_up_s``: the next
+        ran at once.
+    max_lag_s : float
+        Largest lag behind the schedule after a chunk (finish minus the next chunk's
+        deadline) [s wall].
     lateness_s : deque of float
         Publication time minus deadline of the most recent paced chunks [s].
     """
 
     chunks: int = 0
     overruns: int = 0
+    caught_up: int = 0
+    max_lag_s: float = 0.0
     lateness_s: deque = field(default_factory=lambda: deque(maxlen=LATENESS_SAMPLES))
 
 
@@ -335,6 +346,7 @@ class PlantRunner:
         return plant_status(
             sim, state=state, reason=reason, achieved=achieved, window_s=window_s,
             new_overruns=new, chunks=stats.chunks, overruns=stats.overruns,
+            lag_s=self._lag(now), peak_lag_s=self._window.take_peak_lag(),
             real_time_factor=self.real_time_factor, commands=self.commands,
             rejected=sum(self.rejected.values()), new_rejected=self._window.take_rejected(
                 sum(self.rejected.values())), handled=self.handled, resets=self.resets,
@@ -372,6 +384,12 @@ class PlantRunner:
         return not (s.lockstep or s.follow_clock or self.paused or self.failure
                     or self.finished.is_set())
 
+    def _lag(self, now: float) -> float:
+        """How far a paced plant is behind its schedule at ``now``, 0 if not [s wall]."""
+        if self.real_time_factor <= 0.0 or not self._free_running():
+            return 0.0
+        return max(now - self._due(), 0.0)
+
     def _due(self) -> float:
         """Wall deadline of the next chunk [s] (``-inf`` as fast as possible)."""
         return self._pacer.due_at(self._next_index * self.settings.chunk_s)
@@ -394,12 +412,20 @@ class PlantRunner:
                 self._clock.sleep(0)
                 self._last_chunk_end = self._clock.monotonic()
             return
-        self.stats.lateness_s.append(done - due)
+        stats = self.stats
+        stats.lateness_s.append(done - due)
         self._next_index += 1
-        if done > self._due():
-            # behind schedule: count it and restart the schedule instead of catching up
-            self.stats.overruns += 1
-            self._restart_schedule(done, first_due_now=True)
+        lag = done - self._due()
+        if lag > 0.0:
+            stats.max_lag_s = max(stats.max_lag_s, lag)
+            self._window.lag(lag)
+            if lag <= self.settings.max_catch_up_s:
+                # the next chunks are due already: poll runs them at once until on schedule
+                stats.caught_up += 1
+            else:
+                # too far behind to catch up: count it and restart the schedule from now
+                stats.overruns += 1
+                self._restart_schedule(done, first_due_now=True)
 
     def _publish(self, snap: Snapshot) -> None:
         self.stamp_ns = round(snap.time_s * 1e9)

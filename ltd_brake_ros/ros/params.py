@@ -12,7 +12,7 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
 from rclpy.exceptions import InvalidParameterTypeException, ParameterException
 
 from ..physics.kernel import DEFAULT_TOLERANCE_M_S
-from ..plant.settings import MAX_REAL_TIME_FACTOR, StartupError
+from ..plant.settings import DEFAULT_MAX_CATCH_UP_S, MAX_REAL_TIME_FACTOR, StartupError
 
 __all__ = ["ParamSpec", "PARAMETERS", "CLOCK_MODES", "RESET_PARAMETERS", "StartupError",
            "declare_parameters", "check_value", "check_run_time_change"]
@@ -95,6 +95,11 @@ PARAMETERS = (
               "Simulated seconds per wall second: 1 = wall-clock pace, 2 = twice as fast, "
               "0 = as fast as possible; not used in lock-step mode; changeable at run time",
               read_only=False, lo=0.0, hi=MAX_REAL_TIME_FACTOR),
+    ParamSpec("max_catch_up_s", DEFAULT_MAX_CATCH_UP_S,
+              "Wall time the free-running plant may fall behind its schedule and still catch "
+              "up, advancing the chunks already due at once (none before it is due) [s]; "
+              "further behind, the schedule restarts from now and an overrun is counted; "
+              "0 = never catch up", lo=0.0, hi=10.0),
     ParamSpec("lockstep", False,
               "Advance only when ~/step is called (steps_per_call chunks per call)"),
     ParamSpec("steps_per_call", 1,

@@ -7,7 +7,7 @@ from plant_helpers import make_plant
 from ltd_brake_ros.plant.diagnostics import OK, WARN, PaceWindow
 
 KEYS = ["state", "sim_time_s", "real_time_factor", "achieved_real_time_factor", "chunks",
-        "chunk_overruns", "emergency_command", "brake_command_time_s", "head_speed_kmh",
+        "chunk_overruns", "schedule_lag_s", "peak_schedule_lag_s", "emergency_command", "brake_command_time_s", "head_speed_kmh",
         "peak_draft_kN", "peak_draft_coupler", "peak_buff_kN", "peak_buff_coupler",
         "couplers_beyond_lut", "brake_demand", "traction_command", "overcharge_command",
         "rejected_inputs",
@@ -22,6 +22,15 @@ def test_pace_window_measures_simulated_over_wall_time_since_the_last_report():
     assert window.take(13.0, 4.0, 5) == (0.0, 2, 0.0)  # an empty window: no pace to speak of
     window.restart(20.0)  # a reset: simulated time is 0 again, the overrun count goes on
     assert window.take(21.0, 0.5, 6) == (0.5, 1, 1.0)
+
+
+def test_pace_window_keeps_the_largest_lag_until_taken():
+    window = PaceWindow(10.0)
+    assert window.take_peak_lag() == 0.0
+    for lag_s in (0.03, 0.12, 0.01):
+        window.lag(lag_s)
+    assert window.take_peak_lag() == 0.12
+    assert window.take_peak_lag() == 0.0  # the next window starts without lag
 
 
 def test_report_after_an_emergency_stop_shows_the_stop_and_the_peak_coupler_forces():

@@ -12,9 +12,9 @@ from ltd_brake_ros.plant.settings import PlantSettings, StartupError
 #: Parameter values as sim_node declares them by default (config/sim_node.yaml).
 VALUES = {"consist": "scenario_7", "initial_speed_kmh": -1.0, "brake_params_file": "",
           "coupler_lut_file": "", "track_file": "", "start_chainage_m": 0.0, "chunk_s": 0.02,
-          "tolerance_m_s": 0.0, "real_time_factor": 0.0, "lockstep": True, "steps_per_call": 1,
-          "publish_every": 1, "auto_brake_at_s": -1.0, "max_sim_time_s": -1.0,
-          "shutdown_after_stop_s": -1.0}
+          "tolerance_m_s": 0.0, "real_time_factor": 0.0, "max_catch_up_s": 0.2,
+          "lockstep": True, "steps_per_call": 1, "publish_every": 1, "auto_brake_at_s": -1.0,
+          "max_sim_time_s": -1.0, "shutdown_after_stop_s": -1.0}
 
 
 @pytest.fixture(scope="module")

@@ -60,23 +60,97 @@ def test_real_time_factor_zero_runs_chunks_back_to_back_without_waiting():
     assert not plant.runner.stats.lateness_s  # no deadline, no lateness
 
 
-def test_a_late_chunk_counts_one_overrun_and_restarts_the_schedule_without_a_burst():
-    # chunk 10 costs 50 ms of wall time: 2.5 periods at real_time_factor 1
-    plant = make_plant(cost_s=lambda k: 0.05 if k == 10 else 0.0)
+def published_at(plant, wall_s):
+    """Simulated time of the last state published at or before ``wall_s`` [ns]."""
+    return max(stamp for (wall, _), stamp in zip(plant.states, plant.stamps_ns) if wall <= wall_s)
+
+
+def test_a_chunk_late_within_the_budget_is_caught_up_and_the_pace_stays_exactly_one():
+    # chunk 61 costs 50 ms of wall time (2.5 periods): 30 ms behind, within the 0.2 s default
+    plant = make_plant(cost_s=lambda k: 0.05 if k == 60 else 0.0)
     start = plant.clock.t
-    plant.run_until(start + 0.5)
+    assert plant.runner.settings.max_catch_up_s == 0.2
+    plant.run_until(start + 3.0 + 0.01)
     walls = chunk_walls(plant)
-    late_done = start + 11 * 0.02 + 0.05  # the 11th chunk was due at 0.22 s, done at 0.27 s
+    late_done = start + 61 * 0.02 + 0.05  # due at 1.22 s, done at 1.27 s
+    # the two chunks already due run at once (never before their deadline), then the
+    # schedule goes on where it was: no chunk is dropped and none is early
+    due = [start + k * 0.02 for k in range(1, len(walls) + 1)]
+    assert walls[60:63] == pytest.approx([late_done] * 3, abs=1e-9)
+    assert walls[:60] + walls[63:] == pytest.approx(due[:60] + due[63:], abs=1e-9)
+    assert all(w >= d - 1e-9 for w, d in zip(walls, due))
+    stats = plant.runner.stats
+    assert (stats.overruns, stats.caught_up) == (0, 2)  # chunks 61 and 62 ended behind
+    assert stats.max_lag_s == pytest.approx(0.03, abs=1e-9)  # 1.27 s - 1.24 s
+    # simulated time over a wall window spanning the slow chunk: exactly its length
+    assert published_at(plant, start + 2.51) - published_at(plant, start + 0.51) == \
+        100 * CHUNK_NS
+    reports = [s for _, s in plant.statuses]
+    assert [r.values["achieved_real_time_factor"] for r in reports[1:]] == ["1.000"] * 2
+    assert [(r.level, r.message) for r in reports] == [(OK, "running")] * 3
+    assert [r.values["peak_schedule_lag_s"] for r in reports] == ["0.000", "0.030", "0.000"]
+    assert all(r.values["chunk_overruns"] == "0" for r in reports)
+
+
+def test_lag_of_slow_chunks_accumulates_and_an_overrun_rebases_once_beyond_the_budget():
+    # 20 chunks of 30 ms (1.5 periods) from chunk 11 on: each adds 10 ms of lag
+    plant = make_plant(cost_s=lambda k: 0.03 if 10 <= k < 30 else 0.0, max_catch_up_s=0.1)
+    start = plant.clock.t
+    plant.run_until(start + 2.0 + 0.01)
+    stats = plant.runner.stats
+    # the 11th slow chunk ends 110 ms behind: an overrun and a new schedule; the last nine
+    # end at most 90 ms behind it, and four chunks at once take the lag from 90 ms to 10 ms:
+    # 10 + 9 + 4 chunks ended behind and were caught up
+    assert stats.overruns == 1 and stats.caught_up == 10 + 9 + 4
+    assert stats.max_lag_s == pytest.approx(0.11, abs=1e-9)
+    walls = chunk_walls(plant)
+    rebased = start + 0.22 + 11 * 0.03  # the 11th slow chunk ended here
+    assert walls[20] == pytest.approx(rebased, abs=1e-9)
+    back = rebased + 9 * 0.03  # the last slow chunk ended here, 90 ms behind the new schedule
+    assert walls.count(pytest.approx(back, abs=1e-9)) == 1 + 5  # it and five chunks at once
+    # then on the new schedule again: chunk 14 after the rebase is due 10 ms after them
+    after = [w for w in walls if w > back + 1e-9]
+    assert after == pytest.approx([rebased + k * 0.02 for k in range(14, 14 + len(after))],
+                                  abs=1e-9)
+    status = plant.statuses[0][1]
+    assert status.level == WARN and status.message == "1 chunk overrun(s) in the last 1.0 s"
+    assert status.values["peak_schedule_lag_s"] == "0.110"
+
+
+@pytest.mark.parametrize("budget_s, cost_s", [(0.0, 0.05), (0.2, 0.25)])
+def test_a_chunk_late_beyond_the_budget_counts_one_overrun_and_rebases_without_a_burst(
+        budget_s, cost_s):
+    # chunk 11 ends cost_s - 20 ms after chunk 12 was due: more than the budget
+    plant = make_plant(cost_s=lambda k: cost_s if k == 10 else 0.0, max_catch_up_s=budget_s)
+    start = plant.clock.t
+    plant.run_until(start + 0.5 + cost_s)
+    walls = chunk_walls(plant)
+    late_done = start + 11 * 0.02 + cost_s  # the 11th chunk was due at 0.22 s
     assert walls[:11] == pytest.approx([start + k * 0.02 for k in range(1, 11)] + [late_done])
     # the next chunk right away, then one period apart: no catching up
     assert walls[11:14] == pytest.approx([late_done, late_done + 0.02, late_done + 0.04])
     stats = plant.runner.stats
-    assert stats.overruns == 1
-    assert sorted(stats.lateness_s)[-1] == pytest.approx(0.05)
+    assert (stats.overruns, stats.caught_up) == (1, 0)
+    assert sorted(stats.lateness_s)[-1] == pytest.approx(cost_s)
     plant.run_until(start + 1.0 + 1e-6)
     status = plant.statuses[-1][1]
     assert status.level == WARN and status.message == "1 chunk overrun(s) in the last 1.0 s"
     assert status.values["chunk_overruns"] == "1"
+    assert status.values["peak_schedule_lag_s"] == f"{cost_s - 0.02:.3f}"
+
+
+def test_diagnostics_report_the_lag_while_the_plant_catches_up():
+    # chunk 49 ends 85 ms after its deadline, past the first report's time: that report
+    # comes before the chunks due meanwhile run, and says how far behind the plant is
+    plant = make_plant(cost_s=lambda k: 0.105 if k == 48 else 0.0)
+    start = plant.clock.t
+    plant.run_until(start + 1.2)
+    (wall, status), = plant.statuses
+    assert wall == pytest.approx(start + 0.98 + 0.105)
+    assert status.values["schedule_lag_s"] == "0.085"  # behind chunk 50, due at 1.00 s
+    assert status.values["peak_schedule_lag_s"] == "0.085"
+    assert (status.level, status.values["chunk_overruns"]) == (OK, "0")
+    assert plant.stamps_ns[-1] == round((1.2 - 1e-9) // 0.02) * CHUNK_NS  # caught up
 
 
 def test_changing_the_real_time_factor_restarts_the_schedule_from_now():
