@@ -18,6 +18,7 @@ Usage::
 
     python benchmarks/bench_integrator.py            # full run (about 15-25 minutes)
     python benchmarks/bench_integrator.py --quick    # a fast subset (about 1-2 minutes)
+    python benchmarks/bench_integrator.py --end-to-end   # the whole-path figures alone (~10 s)
 """
 from __future__ import annotations
 
@@ -311,6 +312,21 @@ def end_to_end(repeats: int = 7) -> dict:
                 command_run_s=min(r))
 
 
+def end_to_end_line(e2e: dict) -> str:
+    """The end-to-end figures of :func:`end_to_end` as one Markdown bullet."""
+    k = e2e["kernel_s"]
+    return (f"* End to end, scenario 6 ({e2e['sim_s']:.1f} s simulated, best CPU time): kernel "
+            f"(Simulator.advance in 1 s chunks) {k * 1e3:.1f} ms ({e2e['sim_s'] / k:,.0f}×); "
+            f"emergency_stop API {e2e['api_s'] * 1e3:.1f} ms ({e2e['api_s'] / k:.2f}× the "
+            f"kernel, {e2e['sim_s'] / e2e['api_s']:,.0f}×); `ltd-brake simulate --scenario 6 "
+            f"--json`: its run and summary (the time it reports, on the CPU clock) "
+            f"{e2e['command_run_s'] * 1e3:.1f} ms ({e2e['command_run_s'] / k:.2f}× the kernel, "
+            f"{e2e['sim_s'] / e2e['command_run_s']:,.0f}×), the whole command in-process "
+            f"(arguments, input files, construction, verdicts, JSON) "
+            f"{e2e['command_s'] * 1e3:.1f} ms ({e2e['command_s'] / k:.2f}×, "
+            f"{e2e['sim_s'] / e2e['command_s']:,.0f}×).")
+
+
 def advance_overhead(calls: int = 3000) -> dict:
     """Per-call cost of :meth:`Simulator.advance` against the compiled kernel alone.
 
@@ -447,7 +463,16 @@ def main(argv=None) -> int:
     """Run the benchmark and print the tables."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a fast subset")
+    ap.add_argument("--end-to-end", action="store_true",
+                    help="only the end-to-end figures of scenario 6 (kernel, emergency_stop API, "
+                         "ltd-brake simulate in this process)")
+    ap.add_argument("--repeats", type=int, default=None, metavar="N",
+                    help="timed runs of each end-to-end path (default 7, --quick 3)")
     args = ap.parse_args(argv)
+    if args.end_to_end:
+        log("end to end ...")
+        print(end_to_end_line(end_to_end(args.repeats or 7)))
+        return 0
     cases = quick_cases() if args.quick else full_cases()
     started = time.perf_counter()
 
@@ -462,7 +487,7 @@ def main(argv=None) -> int:
         if ref and "fast" in ref and case.tolerance_m_s and case.step_s == 0.01:
             refs.append((case, ref))
     log("end to end ...")
-    e2e = end_to_end(3 if args.quick else 7)
+    e2e = end_to_end(args.repeats or (3 if args.quick else 7))
     over = advance_overhead(1000 if args.quick else 3000)
     log("start-up ...")
     start_best, start_worst, process_s = startup_s()
@@ -489,17 +514,7 @@ def main(argv=None) -> int:
               f"{d.wall_time_s:.2f} s with the dense one ({d.steps} steps); Radau "
               f"{g.wall_time_s:.2f} s ({g.steps} steps); reference stop at "
               f"{g.end_time_s:.2f} s, {g.stopping_distance_m:.3f} m.")
-    k = e2e["kernel_s"]
-    print(f"* End to end, scenario 6 ({e2e['sim_s']:.1f} s simulated, best CPU time): kernel "
-          f"(Simulator.advance in 1 s chunks) {k * 1e3:.1f} ms ({e2e['sim_s'] / k:,.0f}×); "
-          f"emergency_stop API {e2e['api_s'] * 1e3:.1f} ms ({e2e['api_s'] / k:.2f}× the "
-          f"kernel, {e2e['sim_s'] / e2e['api_s']:,.0f}×); `ltd-brake simulate --scenario 6 "
-          f"--json`: its run and summary (the time it reports, on the CPU clock) "
-          f"{e2e['command_run_s'] * 1e3:.1f} ms ({e2e['command_run_s'] / k:.2f}× the kernel, "
-          f"{e2e['sim_s'] / e2e['command_run_s']:,.0f}×), the whole command in-process "
-          f"(arguments, input files, construction, verdicts, JSON) "
-          f"{e2e['command_s'] * 1e3:.1f} ms ({e2e['command_s'] / k:.2f}×, "
-          f"{e2e['sim_s'] / e2e['command_s']:,.0f}×).")
+    print(end_to_end_line(e2e))
     print(f"* Simulator.advance per call (one 10 ms step, scenario 6): {over['advance_us']:.1f} µs "
           f"against {over['kernel_us']:.1f} µs for the bound kernel alone "
           f"({over['advance_us'] - over['kernel_us']:.1f} µs of commands, snapshot and events); "

@@ -8,6 +8,7 @@ that turns it, or an output that cannot be written (:class:`OSError`), into a li
 from __future__ import annotations
 
 import argparse
+import functools
 import importlib
 import os
 import sys
@@ -48,6 +49,14 @@ def build_parser(verb: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+@functools.lru_cache(maxsize=None)
+def _parser(verb: str | None) -> argparse.ArgumentParser:
+    """:func:`build_parser`, once per process and verb: building one costs more than parsing
+    with it (argparse looks up message translations and the terminal for every option), and
+    parsing leaves it unchanged."""
+    return build_parser(verb)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``ltd-brake``.
 
@@ -66,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     # a command line starting with a verb builds that verb alone: the others' options (and the
     # modules their help names) cost start-up time and cannot appear on it
-    parser = build_parser(argv[0] if argv else None)
+    parser = _parser(argv[0] if argv and argv[0] in VERBS else None)
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()

@@ -20,21 +20,16 @@ from .. import verdicts as verdicts_module
 from ..inputs import consist_from_mapping
 from ..inputs.campaign import Campaign, Distribution, fittable_parameters
 from ..inputs.commands import CommandScript
-from ..simulator import Commands, SimulationError, Simulator
-from .runs import scripted_run, summarize
+from ..simulator import Commands, Simulator
+from .runs import emergency_run, scripted_run, summarize
 
-__all__ = ["KPI_FIELDS", "dimensions", "draw", "emergency_run", "inverse_cdf", "models",
+__all__ = ["KPI_FIELDS", "dimensions", "draw", "inverse_cdf", "models",
            "run_batch", "run_one", "schema_of", "warm_up"]
 
 #: Simulated time per chunk of an emergency stop [s], and when to give up if the train has not
 #: stopped [s] (as :func:`.runs.emergency_stop`). While the stop is far, several chunks are
-#: advanced in one call (see :func:`emergency_run`).
+#: advanced in one call (:func:`.runs.emergency_run`).
 CHUNK_S, MAX_TIME_S = 1.0, 600.0
-#: An emergency stop's chunks advanced in one call: at most :data:`MAX_GROUPED`, and at most
-#: :data:`STOP_MARGIN` of the time to the stop predicted from the train's mean deceleration,
-#: predicted only once that deceleration grows by at most :data:`DECEL_GROWTH` per call (the
-#: brakes have applied).
-MAX_GROUPED, STOP_MARGIN, DECEL_GROWTH = 16, 0.5, 1.5
 #: Command-update interval of service and traction runs [s]; their adhesion demand is
 #: sampled at these instants (and as the train comes to rest).
 SCRIPT_CHUNK_S = 0.5
@@ -306,76 +301,14 @@ def run_one(c: Campaign, run_id: int) -> list[dict]:
     return rows
 
 
-def _grouping_keeps_steps(k: int, step_s: float) -> bool:
-    """True if one call of ``k`` chunks takes the nominal steps of ``k`` calls of one chunk
-    (:meth:`~ltd_brake_ros.simulator.Simulator.advance` splits a call into equal steps)."""
-    one = math.ceil(CHUNK_S / step_s - 1e-9)
-    span = k * CHUNK_S
-    steps = math.ceil(span / step_s - 1e-9)
-    return steps == k * one and span / steps == CHUNK_S / one
-
-
-def emergency_run(consist, speed_kmh: float, params, lut, step_s: float) -> Simulator:
-    """An emergency stop from ``speed_kmh``, as :func:`.runs.emergency_stop` runs it.
-
-    The same steps, in chunks of :data:`CHUNK_S` until the train has stopped; while the stop
-    is still far, several chunks go into one
-    :meth:`~ltd_brake_ros.simulator.Simulator.advance` call (each call costs Python work
-    besides its steps). A call spans at most :data:`STOP_MARGIN` of the time to the stop that
-    the train's mean deceleration over the last call predicts, so the call in which the
-    train stops is a single chunk, as before: the run ends at the same chunk's end, with the
-    same steps after the stop (the deceleration only grows as the train slows down, with
-    the friction coefficient of cast-iron blocks). Grouped chunks are only those whose steps
-    are the same as one chunk at a time (:func:`_grouping_keeps_steps`).
-
-    Parameters
-    ----------
-    consist : Consist
-    speed_kmh : float
-        Initial speed [km/h].
-    params, lut
-        Brake and coupler model parameters.
-    step_s : float
-        Nominal integration step [s].
-
-    Returns
-    -------
-    Simulator
-        At the end of the chunk in which the train stopped.
-
-    Raises
-    ------
-    SimulationError
-        A step failed, or the train had not stopped after :data:`MAX_TIME_S`.
-    """
-    sim = Simulator(consist, speed_kmh, params, lut, step_s=step_s)
-    emergency = Commands(emergency=True)
-    mass = sim.mass_kg
-    total_kg = float(mass.sum())
-    speed = float(mass @ sim.snapshot().speed_m_s) / total_kg  # mean speed [m/s]
-    decel, grouped = math.nan, 1
-    while sim.time_s < MAX_TIME_S - 1e-9:
-        span = grouped * CHUNK_S
-        snap = sim.advance(min(span, MAX_TIME_S - sim.time_s), emergency)
-        if sim.stop_time_s is not None:
-            return sim
-        now = float(mass @ snap.speed_m_s) / total_kg
-        last, decel, speed = decel, (speed - now) / span, now
-        grouped = 1
-        if 0.0 < decel <= DECEL_GROWTH * last:  # braking, no longer building up (NaN: False)
-            grouped = max(1, min(MAX_GROUPED, int(STOP_MARGIN * now / decel / CHUNK_S)))
-            if grouped > 1 and not _grouping_keeps_steps(grouped, sim.step_s):
-                grouped = 1
-    raise SimulationError(f"the train had not stopped after {MAX_TIME_S:g} s")
-
-
 def _simulate(c: Campaign, m, consist, speed_kmh: float, params, lut) -> dict:
     """KPIs of one run of manoeuvre ``m``, and its verdicts by the campaign's limits."""
     if m.kind == "emergency":
         # as emergency_stop runs it (the same steps, results and final chunk), with the
         # simulator's verdicts at hand
         start = time.perf_counter()
-        sim = emergency_run(consist, speed_kmh, params, lut, c.step_s)
+        sim = emergency_run(consist, speed_kmh, params, lut, step_s=c.step_s, chunk_s=CHUNK_S,
+                            max_time_s=MAX_TIME_S, group=True)
         r = summarize(sim, time.perf_counter() - start)
         out = {k: getattr(r, k) for k in (
             "train_mass_t", "train_length_m", "braked_weight_percent", "stopping_distance_m",

@@ -1,6 +1,7 @@
 """Whole runs: an emergency stop from speed, and the paper's validation table."""
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import asdict, dataclass
 from typing import Callable, NamedTuple
@@ -70,6 +71,13 @@ class StopResult:
         return asdict(self)
 
 
+#: Grouped chunks of :func:`emergency_run`: a call spans at most :data:`MAX_GROUPED` chunks
+#: and at most :data:`STOP_MARGIN` of the time to the stop predicted from the train's mean
+#: deceleration, predicted only once that deceleration grows by at most :data:`DECEL_GROWTH`
+#: per call (the brakes have applied).
+MAX_GROUPED, STOP_MARGIN, DECEL_GROWTH = 16, 0.5, 1.5
+
+
 def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | None = None,
                    lut: CouplerLUT | None = None, track: Track | None = None, *,
                    step_s: float = 0.01, tolerance_m_s: float | None = DEFAULT_TOLERANCE_M_S,
@@ -77,6 +85,10 @@ def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | Non
                    on_chunk: Callable[[Snapshot], None] | None = None,
                    progress: Callable[[Progress], None] | None = None) -> StopResult:
     """Apply the emergency brake at t = 0 and integrate until the train stands still.
+
+    The run of :func:`emergency_run` (its wall time counts the simulator's construction);
+    without ``on_chunk`` and ``progress`` its chunks are grouped while the stop is far (the
+    same steps and summary, fewer calls).
 
     Parameters
     ----------
@@ -111,18 +123,108 @@ def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | Non
     SimulationError
         A step failed, or the train did not stop within ``max_time_s``.
     """
-    params = params or load_brake_params()
-    lut = lut or load_coupler_lut()
-    sim = Simulator(consist, speed_kmh, params, lut, track, step_s=step_s,
-                    tolerance_m_s=tolerance_m_s)
     start = time.perf_counter()
-    _report(sim.advance(chunk_s, Commands(emergency=True)), None, start, on_chunk, progress)
-    while sim.stop_time_s is None:
+    sim = emergency_run(consist, speed_kmh, params, lut, track, step_s=step_s,
+                        tolerance_m_s=tolerance_m_s, chunk_s=chunk_s, max_time_s=max_time_s,
+                        group=on_chunk is None and progress is None, on_chunk=on_chunk,
+                        progress=progress)
+    return summarize(sim, time.perf_counter() - start)
+
+
+def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None = None,
+                  lut: CouplerLUT | None = None, track: Track | None = None, *,
+                  step_s: float = 0.01, tolerance_m_s: float | None = DEFAULT_TOLERANCE_M_S,
+                  chunk_s: float = 1.0, max_time_s: float = 600.0, group: bool = False,
+                  on_chunk: Callable[[Snapshot], None] | None = None,
+                  progress: Callable[[Progress], None] | None = None) -> Simulator:
+    """An emergency stop: the brake applied at t = 0, chunks of ``chunk_s`` to the stop.
+
+    The one loop of an emergency stop (:func:`emergency_stop`, ``ltd-brake simulate``,
+    campaigns). The run ends at the end of the chunk in which the train stopped.
+
+    With ``group``, several chunks go into one
+    :meth:`~ltd_brake_ros.simulator.Simulator.advance` call while the stop is still far (each
+    call costs Python work besides its steps): a call spans at most :data:`STOP_MARGIN` of
+    the time to the stop that the train's mean deceleration over the last call predicts, so
+    the call in which the train stops is a single chunk, and only chunks whose steps are
+    those of one chunk at a time are grouped. The steps, and everything the kernel tracks
+    step by step (stop, distance, peaks and excursions of the couplers, counters), are
+    those of one chunk per call; what the simulator samples at the end of a call (the
+    adhesion demand of the verdicts, the head's speed at a coupler's peak, the events'
+    snapshots) is then sampled at the grouped calls' ends (the deceleration only grows as
+    the train slows down, with the friction coefficient of cast-iron blocks, so the
+    prediction is safe).
+
+    Parameters
+    ----------
+    consist : Consist
+    speed_kmh : float
+        Initial speed [km/h].
+    params, lut, track : optional
+        Model inputs (defaults: paper parameters, shipped table, level track).
+    step_s : float, optional
+        Nominal (largest) integration step [s].
+    tolerance_m_s : float or None, optional
+        Local error allowed per step in each vehicle's speed [m/s] (0 or None: fixed steps).
+    chunk_s : float, optional
+        Simulated time per chunk [s].
+    max_time_s : float, optional
+        Give up (raise) if the train has not stopped by then [s].
+    group : bool, optional
+        Group chunks while the stop is far (see above).
+    on_chunk : callable, optional
+        Called with the :class:`~ltd_brake_ros.simulator.Snapshot` of each call.
+    progress : callable, optional
+        Called with a :class:`Progress` after each call (``fraction`` None).
+
+    Returns
+    -------
+    Simulator
+        At the end of the chunk in which the train stopped.
+
+    Raises
+    ------
+    SimulationError
+        A step failed, or the train had not stopped after ``max_time_s``.
+    """
+    sim = Simulator(consist, speed_kmh, params or load_brake_params(), lut or load_coupler_lut(),
+                    track, step_s=step_s, tolerance_m_s=tolerance_m_s)
+    start = time.perf_counter()
+    commands: Commands | None = Commands(emergency=True)
+    if group:
+        mass = sim.mass_kg
+        total_kg = float(mass.sum())
+        speed = float(mass @ sim.snapshot().speed_m_s) / total_kg  # mean speed [m/s]
+    decel, grouped = math.nan, 1
+    while True:
+        span = grouped * chunk_s
+        snap = sim.advance(span, commands)
+        commands = None  # held
+        _report(snap, None, start, on_chunk, progress)
+        if sim.stop_time_s is not None:
+            return sim
         if sim.time_s >= max_time_s:
             raise SimulationError(f"the train had not stopped after {max_time_s:g} s")
-        _report(sim.advance(chunk_s), None, start, on_chunk, progress)
-    wall = time.perf_counter() - start
-    return summarize(sim, wall)
+        if not group:
+            continue
+        now = float(mass @ snap.speed_m_s) / total_kg
+        last, decel, speed = decel, (speed - now) / span, now
+        grouped = 1
+        if 0.0 < decel <= DECEL_GROWTH * last:  # braking, no longer building up (NaN: False)
+            left = int((max_time_s - sim.time_s) / chunk_s + 1e-9)  # whole chunks to the end
+            grouped = max(1, min(MAX_GROUPED, left,
+                                 int(STOP_MARGIN * now / decel / chunk_s)))
+            if grouped > 1 and not _grouping_keeps_steps(grouped, chunk_s, sim.step_s):
+                grouped = 1
+
+
+def _grouping_keeps_steps(k: int, chunk_s: float, step_s: float) -> bool:
+    """True if one call of ``k`` chunks takes the nominal steps of ``k`` calls of one chunk
+    (:meth:`~ltd_brake_ros.simulator.Simulator.advance` splits a call into equal steps)."""
+    one = math.ceil(chunk_s / step_s - 1e-9)
+    span = k * chunk_s
+    steps = math.ceil(span / step_s - 1e-9)
+    return steps == k * one and span / steps == chunk_s / one
 
 
 def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
