@@ -1,13 +1,12 @@
 """Brake-parameter files: the brake model they name and its and the friction law's values."""
 from __future__ import annotations
 
-import functools
 import os
 from typing import Any
 
 from ..physics import brakes
 from ..physics.brakes import BrakeParams
-from .schema import Fields, file_keys, load_yaml, params_from_fields, resolve_config_path
+from .schema import Fields, file_keys, load_once, params_from_fields, resolve_config_path
 
 __all__ = ["BrakeParams", "brake_params_from_mapping", "load_brake_params"]
 
@@ -48,15 +47,6 @@ def load_brake_params(path: str | os.PathLike | None = None) -> BrakeParams:
     -------
     BrakeParams
     """
-    p = resolve_config_path(path or "brake_params/paper.yaml")
-    try:
-        mtime_ns = os.stat(p).st_mtime_ns
-    except OSError:
-        mtime_ns = -1  # load_yaml names the file and the reason
-    return _load(str(p), mtime_ns)
-
-
-@functools.lru_cache(maxsize=8)
-def _load(p: str, mtime_ns: int) -> BrakeParams:
-    """:func:`load_brake_params` of one version of a file (the parameters are immutable)."""
-    return brake_params_from_mapping(load_yaml(p), p)
+    # read once per version of the file: the parameters are immutable
+    return load_once(resolve_config_path(path or "brake_params/paper.yaml"),
+                     brake_params_from_mapping)

@@ -1,13 +1,13 @@
 """Consist files: the train, vehicle by vehicle from the head, with the shipped vehicle types."""
 from __future__ import annotations
 
-import functools
 import os
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, ClassVar, Mapping
 
-from .schema import Fields, InputError, config_dir, kind_of, load_yaml, resolve_config_path
+from .schema import (Fields, InputError, built_once, config_dir, kind_of, read_input,
+                     resolve_config_path)
 
 #: Largest consist accepted [vehicles]; far above any real train, it guards memory and time.
 MAX_VEHICLES = 5000
@@ -313,11 +313,15 @@ def _vehicle_types(source: str, data: Any, path: str) -> dict[str, dict]:
     return out
 
 
-@functools.lru_cache(maxsize=4)
-def _shipped_vehicle_types(path: str, mtime_ns: int) -> dict[str, dict]:
-    """The vehicle types of the shipped library, parsed once per version of the file (a
-    campaign builds thousands of trains from it). Callers copy before merging."""
-    return _vehicle_types(path, (load_yaml(path) or {}).get("vehicle_types"), "vehicle_types")
+def _shipped_library() -> tuple[str, bytes]:
+    """The shipped vehicle library ``vehicles.yaml``: its name and contents."""
+    shipped = config_dir() / "vehicles.yaml"
+    return str(shipped), read_input(shipped)
+
+
+def _library_types(data: Any, source: str) -> dict[str, dict]:
+    """The vehicle types of a vehicle library holding ``data``."""
+    return _vehicle_types(source, (data or {}).get("vehicle_types"), "vehicle_types")
 
 
 def consist_from_mapping(data: Any, source: str, base: Path | None = None) -> Consist:
@@ -340,14 +344,20 @@ def consist_from_mapping(data: Any, source: str, base: Path | None = None) -> Co
     -------
     Consist
     """
+    # the shipped library parsed once per version of the file (a campaign builds thousands
+    # of trains from it); copied before merging
+    return _consist(data, source, built_once(_library_types, *_shipped_library()))
+
+
+def _consist(data: Any, source: str, shipped: dict[str, dict]) -> Consist:
+    """:func:`consist_from_mapping` with the shipped vehicle types ``shipped``."""
     top = Fields(data, source)
     top.reject_unknown({"name", "description", "vehicle_types", "vehicles", "venting_vehicle",
                         "limits"})
     train_limits = _parse_limits(top.data["limits"], source, "limits", VehicleLimits()) \
         if top.has("limits") else VehicleLimits()
     train_name = top.string("name", "") or Path(source).stem
-    shipped = config_dir() / "vehicles.yaml"
-    library = dict(_shipped_vehicle_types(str(shipped), os.stat(shipped).st_mtime_ns))
+    library = dict(shipped)
     library.update(_vehicle_types(source, top.data.get("vehicle_types"), "vehicle_types"))
     entries = top.data.get("vehicles")
     if not isinstance(entries, list):
@@ -404,7 +414,15 @@ def load_consist(path: str | os.PathLike) -> Consist:
     Consist
     """
     p = resolve_config_path(path)
-    return consist_from_mapping(load_yaml(p), str(p), p.parent)
+    raw = read_input(p)
+    # built once per version of the file and of the shipped library (a consist is immutable)
+    return built_once(_consist_of_file, str(p), raw, *_shipped_library())
+
+
+def _consist_of_file(data: Any, source: str, library: str, library_raw: bytes) -> Consist:
+    """The consist of file ``source`` holding ``data``, with the shipped library ``library``
+    of contents ``library_raw``."""
+    return _consist(data, source, built_once(_library_types, library, library_raw))
 
 
 def with_wagon_mass(consist: Consist, mass_t: float) -> Consist:

@@ -1,7 +1,6 @@
 """Coupler files: the coupler model they name and its parameters."""
 from __future__ import annotations
 
-import functools
 import os
 from dataclasses import replace
 
@@ -9,7 +8,7 @@ from ..physics import couplers
 from ..physics.couplers import lut_hysteresis
 from ..physics.couplers.lut_hysteresis import Params as CouplerLUT
 from ..physics.parameters import out_of_range, specs
-from .schema import (Fields, InputError, file_keys, load_yaml, params_from_fields,
+from .schema import (Fields, InputError, file_keys, load_once, params_from_fields,
                      resolve_config_path)
 
 __all__ = ["CouplerLUT", "load_coupler_lut"]
@@ -41,19 +40,15 @@ def load_coupler_lut(path: str | os.PathLike | None = None, v_th_mm_s: float | N
     InputError
         Naming the file (or ``v_th_mm_s``), the field and the reason.
     """
-    p = resolve_config_path(path or "couplers/buffer_hook_pugi.yaml")
-    try:
-        mtime_ns = os.stat(p).st_mtime_ns
-    except OSError:
-        mtime_ns = -1  # load_yaml names the file and the reason
-    return _load(str(p), mtime_ns, v_th_mm_s)
+    # read once per version of the file (the parameters are immutable; a simulator built
+    # without a table reads the shipped one)
+    return load_once(resolve_config_path(path or "couplers/buffer_hook_pugi.yaml"), _coupler,
+                     v_th_mm_s)
 
 
-@functools.lru_cache(maxsize=8)
-def _load(p: str, mtime_ns: int, v_th_mm_s: float | None):
-    """:func:`load_coupler_lut` of one version of a file (the parameters are immutable; a
-    simulator built without a table reads the shipped one)."""
-    f = Fields(load_yaml(p), p)
+def _coupler(data, p: str, v_th_mm_s: float | None):
+    """The coupler parameters of file ``p`` holding ``data`` (see :func:`load_coupler_lut`)."""
+    f = Fields(data, p)
     name = f.string("model", couplers.DEFAULT_MODEL, choices=tuple(couplers.MODELS))
     if v_th_mm_s is not None and name != lut_hysteresis.NAME:
         raise InputError("v_th_mm_s", "", f"applies to {lut_hysteresis.NAME} couplers only; "

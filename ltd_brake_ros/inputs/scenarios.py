@@ -1,12 +1,10 @@
 """The scenario catalogue: the runs of the paper's Tables 1-2."""
 from __future__ import annotations
 
-import functools
-import os
 from dataclasses import dataclass, field, replace
 
 from .consist import Consist, load_consist
-from .schema import Fields, InputError, config_dir, load_yaml
+from .schema import Fields, InputError, config_dir, load_once
 
 
 @dataclass(frozen=True)
@@ -43,15 +41,18 @@ def load_scenarios() -> dict[int, Scenario]:
     -------
     dict of int to Scenario
     """
-    p = config_dir() / "scenarios.yaml"
-    return {k: replace(s, paper=dict(s.paper))
-            for k, s in _catalogue(str(p), os.stat(p).st_mtime_ns).items()}
+    return {k: replace(s, paper=dict(s.paper)) for k, s in _catalogue().items()}
 
 
-@functools.lru_cache(maxsize=2)
-def _catalogue(p: str, mtime_ns: int) -> dict[int, Scenario]:
-    """The catalogue parsed once per version of the file; callers copy the mutable parts."""
-    data = Fields(load_yaml(p), p).data.get("scenarios") or {}
+def _catalogue() -> dict[int, Scenario]:
+    """The shipped catalogue, parsed once per version of the file; callers copy the mutable
+    parts."""
+    return load_once(config_dir() / "scenarios.yaml", _catalogue_of)
+
+
+def _catalogue_of(data, p: str) -> dict[int, Scenario]:
+    """The catalogue of file ``p`` holding ``data``."""
+    data = Fields(data, p).data.get("scenarios") or {}
     out = {}
     if not isinstance(data, dict):
         raise InputError(p, "scenarios", "must be a mapping of scenario number to run")
@@ -75,9 +76,10 @@ def get_scenario(name: str | int) -> Scenario:
     -------
     Scenario
     """
-    catalogue = load_scenarios()
+    catalogue = _catalogue()
     text = str(name).strip().lower().removeprefix("scenario").strip("_ -")
     if text.isdigit() and int(text) in catalogue:
-        return catalogue[int(text)]
+        found = catalogue[int(text)]
+        return replace(found, paper=dict(found.paper))
     raise InputError("scenario", "", f"unknown scenario {name!r}; known: "
                      f"{', '.join(str(k) for k in sorted(catalogue))}")

@@ -10,6 +10,7 @@ import functools
 import math
 import os
 import re
+import stat
 import sys
 from pathlib import Path
 from typing import Any, Mapping
@@ -55,13 +56,19 @@ def config_dir() -> Path:
         The first of: ``$LTD_BRAKE_CONFIG``, the source checkout's ``config/``, the installed
         ``share/ltd_brake_ros/config`` (pip or colcon prefix).
     """
+    env = os.environ.get("LTD_BRAKE_CONFIG") or ""
+    first = _FIRST_CHOICE.get(env)
+    if first is not None and os.path.isfile(first[1]):
+        return first[0]  # found before, and nothing comes before it
     candidates = []
-    if os.environ.get("LTD_BRAKE_CONFIG"):
-        candidates.append(Path(os.environ["LTD_BRAKE_CONFIG"]))
+    if env:
+        candidates.append(Path(env))
     candidates.append(_checkout_config())
     candidates.append(Path(sys.prefix) / "share" / "ltd_brake_ros" / "config")
-    for path in candidates:
+    for k, path in enumerate(candidates):
         if (path / "scenarios.yaml").is_file():
+            if k == 0:
+                _FIRST_CHOICE[env] = (path, os.path.join(path, "scenarios.yaml"))
             return path
     try:  # colcon / ROS install space
         from ament_index_python.packages import get_package_share_directory
@@ -72,6 +79,11 @@ def config_dir() -> Path:
     except Exception:  # noqa: BLE001 - ament index absent or package not registered
         pass
     raise InputError("config", "", "cannot find the shipped config/ directory; set LTD_BRAKE_CONFIG")
+
+
+#: ``$LTD_BRAKE_CONFIG`` -> the config directory found as the first candidate for it, and its
+#: scenario catalogue (checked on every call: while it exists, no other candidate can win).
+_FIRST_CHOICE: dict[str, tuple[Path, str]] = {}
 
 
 @functools.lru_cache(maxsize=1)
@@ -96,13 +108,15 @@ def resolve_config_path(path: str | os.PathLike, base: Path | None = None) -> Pa
     pathlib.Path
         An existing file; if none exists, ``path`` unchanged so that loading names it.
     """
-    p = Path(path).expanduser()
-    if p.is_absolute():
-        return p
-    for root in ([base] if base else []) + [Path.cwd(), config_dir()]:
-        if (root / p).is_file():
-            return root / p
-    return p
+    # os.path on strings: pathlib costs more than the file system here
+    p = os.path.expanduser(os.fspath(path))
+    if os.path.isabs(p):
+        return Path(p)
+    for root in ([base] if base else []) + [os.getcwd(), config_dir()]:
+        candidate = os.path.join(root, p)
+        if os.path.isfile(candidate):
+            return Path(candidate)
+    return Path(p)
 
 
 #: Largest input file read [bytes]; the biggest consist (5000 vehicles, one line each) is < 1 MiB.
@@ -141,19 +155,74 @@ def load_yaml(path: str | os.PathLike) -> Any:
         aliases can expand to); one line naming the file, the field and the line.
     """
     p = Path(path)
-    if not p.exists():
-        raise InputError(p, "", "file does not exist")
-    if not p.is_file():
-        raise InputError(p, "", "is not a regular file")
+    return parse_yaml(read_input(p), p)
+
+
+def read_input(path: str | os.PathLike) -> bytes:
+    """The bytes of an input file, with the checks of :func:`load_yaml`.
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    bytes
+
+    Raises
+    ------
+    InputError
+        The file does not exist, is not a regular file, cannot be read or is larger than
+        :data:`MAX_FILE_BYTES`.
+    """
     try:
-        with open(p, "rb") as fh:
-            raw = fh.read(MAX_FILE_BYTES + 1)
-        if len(raw) > MAX_FILE_BYTES:
-            raise InputError(p, "", f"is larger than {MAX_FILE_BYTES // 2**20} MiB; input "
-                             f"files are limited to {MAX_FILE_BYTES // 2**20} MiB")
+        mode = os.stat(path).st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        raise InputError(Path(path), "", "file does not exist") from None
+    except OSError as exc:
+        raise InputError(Path(path), "", f"cannot read: {exc}") from None
+    if not stat.S_ISREG(mode):
+        raise InputError(Path(path), "", "is not a regular file")
+    try:
+        with open(path, "rb") as fh:
+            # what the file holds and a byte more (reading into a buffer of the largest size
+            # allowed costs more than the read), on to that size if it grew meanwhile
+            size = os.fstat(fh.fileno()).st_size
+            raw = fh.read(min(size, MAX_FILE_BYTES) + 1)
+            if size < len(raw) <= MAX_FILE_BYTES:
+                raw += fh.read(MAX_FILE_BYTES + 1 - len(raw))
+    except OSError as exc:
+        raise InputError(Path(path), "", f"cannot read: {exc}") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise InputError(Path(path), "", f"is larger than {MAX_FILE_BYTES // 2**20} MiB; "
+                         f"input files are limited to {MAX_FILE_BYTES // 2**20} MiB")
+    return raw
+
+
+def parse_yaml(raw: bytes, source: str | os.PathLike) -> Any:
+    """Parse the bytes of a YAML input file as :func:`load_yaml` does.
+
+    Parameters
+    ----------
+    raw : bytes
+        The file's contents (:func:`read_input`).
+    source : str or path-like
+        The file, for error messages.
+
+    Returns
+    -------
+    object
+        The parsed document.
+
+    Raises
+    ------
+    InputError
+        As :func:`load_yaml`.
+    """
+    try:
         text = raw.decode("utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(p, "", f"cannot read: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(source, "", f"cannot read: {exc}") from None
     data = _load_plain(text)
     if data is not _NOT_PLAIN:
         return data
@@ -161,14 +230,68 @@ def load_yaml(path: str | os.PathLike) -> Any:
     try:
         return loader.get_single_data()
     except _Refused as exc:
-        raise InputError(p, exc.field, exc.reason) from None
+        raise InputError(source, exc.field, exc.reason) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise InputError(p, "", f"not valid YAML{where}: {problem}") from None
+        raise InputError(source, "", f"not valid YAML{where}: {problem}") from None
     finally:
         loader.dispose()
+
+
+def load_once(path: str | os.PathLike, build, *args) -> Any:
+    """``build(document, source, *args)`` of a YAML input file, built once per contents.
+
+    The file is read on every call and the value built again whenever its bytes (or
+    ``args``) differ from those of a value already built, so an edited file is never served
+    from before the edit (a file's modification time may not change between two writes).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file.
+    build : callable
+        ``build(document, source, *args)`` validates the parsed document into an immutable
+        value (shared by every caller).
+    *args
+        Further arguments of ``build`` (hashable).
+
+    Returns
+    -------
+    object
+        What ``build`` returns.
+
+    Raises
+    ------
+    InputError
+        As :func:`load_yaml`, or as ``build``.
+    """
+    return built_once(build, str(path), read_input(path), *args)
+
+
+def built_once(build, source: str, raw: bytes, *args) -> Any:
+    """``build(document, source, *args)`` of the bytes ``raw`` of file ``source``, built once
+    per (``build``, ``source``, ``raw``, ``args``): :func:`load_once` for a file already read.
+
+    Parameters
+    ----------
+    build : callable
+    source : str
+    raw : bytes
+    *args
+        Hashable.
+
+    Returns
+    -------
+    object
+    """
+    return _built(build, source, raw, args)
+
+
+@functools.lru_cache(maxsize=32)
+def _built(build, source: str, raw: bytes, args: tuple) -> Any:
+    return build(parse_yaml(raw, source), source, *args)
 
 
 def decimal_or_text(text: str) -> Any:

@@ -1,0 +1,76 @@
+"""Input files are read once per version: an edited file is read anew at once, even when the
+edit keeps its size and modification time (two writes within one tick of the file system's
+clock)."""
+import os
+import shutil
+
+import pytest
+
+from ltd_brake_ros.inputs import (config_dir, get_scenario, load_brake_params, load_consist,
+                                  load_coupler_lut, load_scenarios)
+
+
+def rewrite(path, old: str, new: str) -> None:
+    """Replace ``old`` by ``new`` (same length) keeping the file's size and times."""
+    assert len(old) == len(new)
+    st = os.stat(path)
+    text = path.read_text()
+    assert text.count(old) == 1
+    path.write_text(text.replace(old, new))
+    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert os.stat(path).st_mtime_ns == st.st_mtime_ns and os.stat(path).st_size == st.st_size
+
+
+@pytest.fixture
+def config(tmp_path, monkeypatch):
+    """A copy of the shipped config directory, the one the loaders use."""
+    copy = tmp_path / "config"
+    shutil.copytree(config_dir(), copy)
+    monkeypatch.setenv("LTD_BRAKE_CONFIG", str(copy))
+    assert config_dir() == copy
+    return copy
+
+
+def test_an_edited_consist_file_is_read_anew(config):
+    path = config / "consists" / "e402b_32_shimmns_50t.yaml"
+    first = load_consist(path)
+    assert load_consist(path) is first  # unchanged: the consist built before
+    rewrite(path, "mass_t: 50.0", "mass_t: 60.0")
+    again = load_consist(path)
+    assert first.vehicles[1].mass_kg == 50e3 and again.vehicles[1].mass_kg == 60e3
+    rewrite(path, "count: 32", "count: 31")
+    assert load_consist(path).n == 32
+
+
+def test_an_edited_vehicle_library_changes_the_consists_built_from_it(config):
+    path = config / "consists" / "e402b_32_shimmns_50t.yaml"
+    first = load_consist(path)
+    rewrite(config / "vehicles.yaml", "mass_t: 89.0", "mass_t: 88.0")  # the E402B
+    assert first.vehicles[0].mass_kg == 89e3
+    assert load_consist(path).vehicles[0].mass_kg == 88e3
+
+
+def test_edited_model_files_and_catalogue_are_read_anew(config):
+    params = config / "brake_params" / "paper.yaml"
+    assert load_brake_params(params).friction.k0 == 2.72
+    rewrite(params, "k0: 2.72", "k0: 2.62")
+    assert load_brake_params(params).friction.k0 == 2.62
+    # the defaults are the copied files
+    assert load_brake_params().friction.k0 == 2.62
+
+    lut = config / "couplers" / "buffer_hook_pugi.yaml"
+    assert load_coupler_lut(lut).v_th_m_s == pytest.approx(0.1e-3)
+    rewrite(lut, "v_th_mm_s: 0.1 ", "v_th_mm_s: 0.2 ")
+    assert load_coupler_lut(lut).v_th_m_s == pytest.approx(0.2e-3)
+
+    catalogue = config / "scenarios.yaml"
+    assert get_scenario(6).speed_kmh == 100.0
+    rewrite(catalogue, "e402b_32_shimmns_50t.yaml, speed_kmh: 100,",
+            "e402b_32_shimmns_50t.yaml, speed_kmh: 090,")
+    assert get_scenario(6).speed_kmh == load_scenarios()[6].speed_kmh == 90.0
+
+
+def test_a_scenario_is_a_copy(config):
+    sc = get_scenario(6)
+    sc.paper["uic_m"] = -1.0
+    assert get_scenario(6).paper["uic_m"] == load_scenarios()[6].paper["uic_m"] == 492.5
