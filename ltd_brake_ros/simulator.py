@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import threading
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -373,6 +374,50 @@ class SimulatorState:
             watch=None if self.watch is None else self.watch.copy())
 
 
+class _Compiled:
+    """A train compiled for the kernel, its limits and the kernel bound for its arguments."""
+
+    __slots__ = ("consist", "model", "limits", "run_steps")
+
+    def __init__(self, consist: Consist, model: kernel.TrainModel, limits: TrainLimits):
+        self.consist, self.model, self.limits, self.run_steps = consist, model, limits, None
+
+
+#: Trains compiled by :func:`_compiled`, most recent last.
+_COMPILED: dict[tuple, _Compiled] = {}
+#: How many :data:`_COMPILED` keeps.
+_COMPILED_KEPT = 8
+_COMPILED_LOCK = threading.Lock()
+
+
+def _compiled(consist: Consist, params: BrakeParams, coupler, track: Track, resistance: bool,
+              brakes_on: bool) -> _Compiled:
+    """:meth:`Simulator._compile` and the train's limits, once per set of inputs.
+
+    The inputs are immutable (a consist is known by its identity, held by the entry so that
+    the identity stays its own; the others by value) and so is a compiled train: the kernel
+    only reads it. A simulator built again from the same loaded files (input files are read
+    once per version) takes the train compiled before.
+    """
+    key = (id(consist), params, coupler, track, resistance, brakes_on)
+    try:
+        with _COMPILED_LOCK:
+            hit = _COMPILED.pop(key, None)
+            if hit is not None:
+                _COMPILED[key] = hit  # the most recent now
+                return hit
+    except TypeError:  # an input that is not hashable: compiled every time
+        key = None
+    hit = _Compiled(consist, Simulator._compile(consist, params, coupler, track, resistance,
+                                                brakes_on), train_limits(consist, coupler))
+    if key is not None:
+        with _COMPILED_LOCK:
+            _COMPILED[key] = hit
+            while len(_COMPILED) > _COMPILED_KEPT:
+                del _COMPILED[next(iter(_COMPILED))]
+    return hit
+
+
 class Simulator:
     """Longitudinal dynamics of one train under an air-brake model.
 
@@ -457,7 +502,8 @@ class Simulator:
         self.standstill_m_s = float(standstill_m_s)
         self.stick_band_m_s = float(stick_band_m_s)
         self._brakes = bool(brakes)
-        self.model = self._compile(consist, params, lut, self.track, resistance, self._brakes)
+        compiled = _compiled(consist, params, lut, self.track, bool(resistance), self._brakes)
+        self.model = compiled.model
         self._brake_model = brakes_module.model_of(params.pneumatic)
         self._options = kernel.Options(self.max_newton_iter, self.newton_rtol,
                                        self.standstill_m_s, self.stick_band_m_s,
@@ -468,10 +514,14 @@ class Simulator:
             0.0, 0.0, kernel.KinematicState.initial(n, self.speed_kmh / KMH_PER_MS),
             self._brake_model.initial_state(self.model.brakes), brakes_module.CommandEvents.empty(),
             kernel.new_stats(), np.zeros(nc, bool))
-        self.limits: TrainLimits = train_limits(consist, lut)
+        self.limits: TrainLimits = compiled.limits
         self._initial.watch = Watch(self.limits)
         self.reset()
-        self._bind_kernel()
+        if compiled.run_steps is None:
+            self._bind_kernel()
+            compiled.run_steps = self._run_steps
+        else:  # bound for this model's arguments: the same types for every simulator of it
+            self._run_steps, self._bound_model = compiled.run_steps, self.model
 
     @staticmethod
     def _compile(consist: Consist, params: BrakeParams, coupler, track: Track, resistance: bool,

@@ -74,3 +74,26 @@ def test_a_scenario_is_a_copy(config):
     sc = get_scenario(6)
     sc.paper["uic_m"] = -1.0
     assert get_scenario(6).paper["uic_m"] == load_scenarios()[6].paper["uic_m"] == 492.5
+
+
+def test_a_simulator_of_an_edited_file_runs_the_edited_train(config):
+    from ltd_brake_ros.simulator import Commands, Simulator
+
+    path = config / "consists" / "e402b_32_shimmns_50t.yaml"
+    params = load_brake_params()
+
+    def stop(consist):
+        sim = Simulator(consist, 100.0, params)
+        sim.advance(5.0, Commands(emergency=True))
+        return sim
+
+    first, same = stop(load_consist(path)), stop(load_consist(path))
+    assert same.model is first.model  # the same files: the train compiled before
+    assert same.snapshot().speed_m_s.tolist() == first.snapshot().speed_m_s.tolist()
+    rewrite(path, "mass_t: 50.0", "mass_t: 80.0")
+    heavier = stop(load_consist(path))
+    assert heavier.model is not first.model
+    assert heavier.mass_kg[1] == 80e3
+    # loaded wagons brake a lower share of their weight (lambda_train about 74 % against
+    # 116 %, Tables 1-2): less speed lost after 5 s
+    assert heavier.snapshot().speed_m_s[1] > first.snapshot().speed_m_s[1]
