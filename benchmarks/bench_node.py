@@ -10,7 +10,10 @@
   stop (or ``--long-sim-seconds``), 20 ms chunks, every chunk published (arrays of 1 001 values,
   the pipe and cylinder pressures included): the pace at ``real_time_factor:=0``, the wall time
   of a chunk split into ``Simulator.advance`` (the kernel) and publishing, and at
-  ``real_time_factor:=1`` the achieved pace and the chunks that overran.
+  ``real_time_factor:=1`` the achieved pace (simulated over wall time from the first to the
+  last published chunk), the chunks that overran, the largest lag behind the schedule and
+  the chunks caught up: with ``max_catch_up_s:=0`` (a late chunk restarts the schedule) and
+  with the default catch-up budget, runs alternated.
 * Lock-step loop from a Python client (the way ``examples/speed_controller.py`` drives the
   plant): publish ``brake_demand``, call ``~/step`` (one 20 ms chunk), wait for the reply and
   for the ``vehicles/state`` the step published. The node runs as its own process (the
@@ -20,6 +23,7 @@ Usage::
 
     ./dev.sh run python benchmarks/bench_node.py [--sim-seconds 120] [--steps 2000] [--repeat 3]
         [--long-repeat 1] [--long-sim-seconds 200] [--long-chunk-s 0.02] [--only-long]
+        [--long-catch-up-s 0.2]
 
 Prints a Markdown table: the best of ``--repeat`` runs and the spread (best to worst).
 """
@@ -49,6 +53,7 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
+from ltd_brake_ros.plant.settings import DEFAULT_MAX_CATCH_UP_S  # noqa: E402
 from ltd_brake_ros.ros.sim_node import SimNode  # noqa: E402
 
 CHUNK_S = 0.02
@@ -92,25 +97,29 @@ def free_running(context: Context, sim_seconds: float, publish_every: int) -> fl
 
 
 def long_train(context: Context, consist: str, sim_seconds: float,
-               real_time_factor: float, chunk_s: float = CHUNK_S) -> dict:
+               real_time_factor: float, chunk_s: float = CHUNK_S,
+               max_catch_up_s: float = DEFAULT_MAX_CATCH_UP_S) -> dict:
     """Pace and per-chunk wall times of an in-process node on the 1 000-wagon train.
 
     Returns
     -------
     dict
-        ``pace`` (simulated / wall time), ``advance_ms`` and ``publish_ms`` (mean wall time of
-        ``Simulator.advance`` and of publishing a chunk), ``advance_p99_ms``, ``overruns``
-        (chunks finished after the next was due), ``chunks``.
+        ``pace`` (simulated / wall time of the whole run), ``published_pace`` (simulated /
+        wall time from the first to the last published chunk), ``advance_ms`` and
+        ``publish_ms`` (mean wall time of ``Simulator.advance`` and of publishing a chunk),
+        ``advance_p99_ms``, ``overruns`` (chunks finished more than ``max_catch_up_s`` after
+        the next was due), ``caught_up`` (chunks finished behind, within it), ``max_lag_ms``
+        (largest lag behind the schedule), ``chunks``.
     """
     node = SimNode(context=context, parameter_overrides=[
         Parameter(k, value=v) for k, v in {
             "consist": consist, "initial_speed_kmh": 100.0,
             "brake_params_file": "brake_params/uic_brake_pipe.yaml", "chunk_s": chunk_s,
-            "real_time_factor": real_time_factor, "auto_brake_at_s": 0.0,
-            "max_sim_time_s": sim_seconds, "shutdown_after_stop_s": 1.0,
-            "clock": "publish"}.items()])
+            "real_time_factor": real_time_factor, "max_catch_up_s": max_catch_up_s,
+            "auto_brake_at_s": 0.0, "max_sim_time_s": sim_seconds,
+            "shutdown_after_stop_s": 1.0, "clock": "publish"}.items()])
     runner = node.runner
-    advance, publish = [], []
+    advance, publish, published = [], [], []
     timed_advance, timed_publish = runner.sim.advance, runner._publish_state
 
     def advance_timed(*args, **kwargs):
@@ -123,15 +132,20 @@ def long_train(context: Context, consist: str, sim_seconds: float,
         t0 = time.perf_counter()
         timed_publish(snap)
         publish.append(time.perf_counter() - t0)
+        published.append((time.monotonic(), snap.time_s))
 
     runner.sim.advance, runner._publish_state = advance_timed, publish_timed
     elapsed = run_to_the_end(context, node)
     advance.sort()
-    return {"pace": runner.sim_time_s / elapsed, "chunks": runner.stats.chunks,
+    (first_wall, first_s), (last_wall, last_s) = published[1], published[-1]
+    stats = runner.stats
+    return {"pace": runner.sim_time_s / elapsed, "chunks": stats.chunks,
+            "published_pace": (last_s - first_s) / (last_wall - first_wall),
             "advance_ms": 1e3 * sum(advance) / len(advance),
             "advance_p99_ms": 1e3 * advance[int(0.99 * (len(advance) - 1))],
             "publish_ms": 1e3 * sum(publish[1:]) / max(len(publish) - 1, 1),
-            "overruns": runner.stats.overruns}
+            "overruns": stats.overruns, "caught_up": stats.caught_up,
+            "max_lag_ms": 1e3 * stats.max_lag_s}
 
 
 def sim_node_executable() -> str:
@@ -206,13 +220,30 @@ def spread(values: list[float], digits: int = 0) -> str:
             f"{max(values):.{digits}f})")
 
 
-def long_rows(context: Context, repeat: int, sim_seconds: float, chunk_s: float) -> list[str]:
-    """Table rows of the 1 000-wagon brake-pipe train (best of ``repeat``)."""
+def paced_row(runs: list[dict], label: str) -> str:
+    """Table row of paced 1 000-wagon runs: pace, overruns, largest lag, chunks caught up
+    (the run with the best pace, and the spread of the pace and of the overruns)."""
+    best = max(runs, key=lambda r: r["published_pace"])
+    overruns = [r["overruns"] for r in runs]
+    return (f"| 1 000 wagons, brake pipe, real_time_factor 1, {label}: achieved real-time "
+            f"factor; chunks that overran (spread); largest lag; chunks caught up "
+            f"| {spread([r['published_pace'] for r in runs], 4)}; "
+            f"{best['overruns']} of {best['chunks']} ({min(overruns)}-{max(overruns)}); "
+            f"{best['max_lag_ms']:.0f} ms; {best['caught_up']} |")
+
+
+def long_rows(context: Context, repeat: int, sim_seconds: float, chunk_s: float,
+              catch_up_s: float) -> list[str]:
+    """Table rows of the 1 000-wagon brake-pipe train (best of ``repeat``; the paced runs
+    without and with catch-up alternated, so both see the same load)."""
     with tempfile.TemporaryDirectory() as folder:
         consist = str(Path(folder) / "e402b_1000_shimmns_80t.yaml")
         Path(consist).write_text(LONG_TRAIN)
         fast = [long_train(context, consist, sim_seconds, 0.0, chunk_s) for _ in range(repeat)]
-        paced = [long_train(context, consist, sim_seconds, 1.0, chunk_s) for _ in range(repeat)]
+        restart, catch_up = [], []
+        for _ in range(repeat):
+            restart.append(long_train(context, consist, sim_seconds, 1.0, chunk_s, 0.0))
+            catch_up.append(long_train(context, consist, sim_seconds, 1.0, chunk_s, catch_up_s))
     best = max(fast, key=lambda r: r["pace"])
     share = best["publish_ms"] / (best["advance_ms"] + best["publish_ms"])
     return [
@@ -222,9 +253,8 @@ def long_rows(context: Context, repeat: int, sim_seconds: float, chunk_s: float)
         f"(kernel) mean / p99; "
         f"publishing mean | {best['advance_ms']:.1f} / {best['advance_p99_ms']:.1f} ms; "
         f"{best['publish_ms']:.2f} ms ({100 * share:.0f} %) |",
-        f"| 1 000 wagons, brake pipe, real_time_factor 1: achieved real-time factor; chunks "
-        f"that overran | {spread([r['pace'] for r in paced], 3)}; "
-        f"{min(r['overruns'] for r in paced)} of {paced[0]['chunks']} |"]
+        paced_row(restart, "max_catch_up_s 0 (a late chunk restarts the schedule)"),
+        paced_row(catch_up, f"max_catch_up_s {catch_up_s:g}")]
 
 
 def main() -> None:
@@ -240,6 +270,8 @@ def main() -> None:
                     help="longest simulated time of a 1 000-wagon run [s]")
     ap.add_argument("--long-chunk-s", type=float, default=CHUNK_S,
                     help="chunk of the 1 000-wagon runs [s]")
+    ap.add_argument("--long-catch-up-s", type=float, default=DEFAULT_MAX_CATCH_UP_S,
+                    help="max_catch_up_s of the paced 1 000-wagon runs with catch-up [s]")
     ap.add_argument("--only-long", action="store_true", help="only the 1 000-wagon rows")
     args = ap.parse_args()
 
@@ -251,8 +283,8 @@ def main() -> None:
         every_1.append(free_running(context, args.sim_seconds, 1))
         every_10.append(free_running(context, args.sim_seconds, 10))
         loops.append(lockstep_loop(context, args.steps))
-    long = long_rows(context, args.long_repeat, args.long_sim_seconds, args.long_chunk_s) \
-        if args.long_repeat > 0 else []
+    long = long_rows(context, args.long_repeat, args.long_sim_seconds, args.long_chunk_s,
+                     args.long_catch_up_s) if args.long_repeat > 0 else []
     rclpy.try_shutdown(context=context)
     print(f"sim_node speed, scenario 6 (33 vehicles) unless said, chunk {CHUNK_S:g} s; best of "
           f"{args.repeat} runs ({args.long_repeat} for 1 000 wagons) (spread); "
