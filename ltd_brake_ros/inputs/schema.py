@@ -12,6 +12,8 @@ import os
 import re
 import stat
 import sys
+import threading
+import time
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -176,27 +178,55 @@ def read_input(path: str | os.PathLike) -> bytes:
         :data:`MAX_FILE_BYTES`.
     """
     try:
-        mode = os.stat(path).st_mode
+        st = os.stat(path)
     except (FileNotFoundError, NotADirectoryError):
         raise InputError(Path(path), "", "file does not exist") from None
     except OSError as exc:
         raise InputError(Path(path), "", f"cannot read: {exc}") from None
-    if not stat.S_ISREG(mode):
+    if not stat.S_ISREG(st.st_mode):
         raise InputError(Path(path), "", "is not a regular file")
+    name = os.fspath(path)
+    known = _READ.get(name)
+    if known is not None and known[0] == _signature(st):
+        return known[1]
     try:
         with open(path, "rb") as fh:
+            st = os.fstat(fh.fileno())
             # what the file holds and a byte more (reading into a buffer of the largest size
             # allowed costs more than the read), on to that size if it grew meanwhile
-            size = os.fstat(fh.fileno()).st_size
-            raw = fh.read(min(size, MAX_FILE_BYTES) + 1)
-            if size < len(raw) <= MAX_FILE_BYTES:
+            raw = fh.read(min(st.st_size, MAX_FILE_BYTES) + 1)
+            if st.st_size < len(raw) <= MAX_FILE_BYTES:
                 raw += fh.read(MAX_FILE_BYTES + 1 - len(raw))
     except OSError as exc:
         raise InputError(Path(path), "", f"cannot read: {exc}") from None
     if len(raw) > MAX_FILE_BYTES:
         raise InputError(Path(path), "", f"is larger than {MAX_FILE_BYTES // 2**20} MiB; "
                          f"input files are limited to {MAX_FILE_BYTES // 2**20} MiB")
+    # kept only when the file had not changed for a while before it was opened: any later
+    # change then gives it a newer change time (ctime, which no program can set back)
+    if len(raw) <= _KEPT_BYTES and time.time_ns() - st.st_ctime_ns > _SETTLED_NS:
+        with _READ_LOCK:
+            _READ[name] = (_signature(st), raw)
+            while len(_READ) > _KEPT_FILES:
+                del _READ[next(iter(_READ))]
     return raw
+
+
+def _signature(st: os.stat_result) -> tuple:
+    """What changes when a file is written, replaced or touched."""
+    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns
+
+
+#: Files read by :func:`read_input`, by name: their :func:`_signature` and bytes, reused
+#: while the signature holds.
+_READ: dict[str, tuple[tuple, bytes]] = {}
+_READ_LOCK = threading.Lock()
+#: A file is kept once it has not changed for this long [ns]: longer than the coarsest
+#: time stamps of a file system (2 s on FAT), so that a change after the read cannot leave
+#: the change time as it was.
+_SETTLED_NS = 3 * 10**9
+#: Most files kept, and the largest kept [bytes].
+_KEPT_FILES, _KEPT_BYTES = 32, 2**20
 
 
 def parse_yaml(raw: bytes, source: str | os.PathLike) -> Any:

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from typing import Callable, NamedTuple
 
 from ..inputs import (BrakeParams, CommandScript, Consist, CouplerLUT, Scenario, Track,
@@ -68,9 +68,15 @@ class StopResult:
 
     def as_dict(self) -> dict:
         """Plain dict for JSON output."""
-        return asdict(self)
+        # the fields as they are (numbers and text) but the nested summary: asdict's deep
+        # copy of every number costs more than the summary itself
+        out = {name: getattr(self, name) for name in _STOP_FIELDS}
+        out["out_of_range"] = asdict(self.out_of_range)
+        return out
 
 
+#: The fields of :class:`StopResult`, in order.
+_STOP_FIELDS = tuple(f.name for f in fields(StopResult))
 #: Grouped chunks of :func:`emergency_run`: a call spans at most :data:`MAX_GROUPED` chunks
 #: and at most :data:`STOP_MARGIN` of the time to the stop predicted from the train's mean
 #: deceleration, predicted only once that deceleration grows by at most :data:`DECEL_GROWTH`
@@ -304,6 +310,7 @@ def summarize(sim: Simulator, wall_s: float) -> StopResult:
     """
     peaks = sim.coupler_peaks()
     beyond = sim.coupler_excursions()
+    stats = sim.stats
     stop_t = sim.stop_time_s - (sim.command_time_s or 0.0)
     return StopResult(
         consist=sim.consist.name, vehicles=sim.n, train_length_m=sim.consist.length_m,
@@ -318,10 +325,10 @@ def summarize(sim: Simulator, wall_s: float) -> StopResult:
         couplers_beyond_lut=beyond.count,
         max_beyond_lut_mm=beyond.worst[0].beyond_range_mm if beyond.worst else 0.0,
         wall_time_s=wall_s, real_time_factor=sim.time_s / wall_s if wall_s > 0 else float("inf"),
-        steps=sim.steps, newton_iterations=sim.newton_iterations,
-        newton_iterations_per_step=sim.newton_iterations / max(sim.steps, 1),
-        max_newton_iterations=sim.max_newton_iterations,
-        rejected_steps=sim.stats.rejected_steps, smallest_step_s=sim.stats.smallest_step_s,
+        steps=stats.steps, newton_iterations=stats.newton_iterations,
+        newton_iterations_per_step=stats.newton_iterations / max(stats.steps, 1),
+        max_newton_iterations=stats.max_newton_iterations,
+        rejected_steps=stats.rejected_steps, smallest_step_s=stats.smallest_step_s,
         out_of_range=beyond)
 
 

@@ -97,3 +97,22 @@ def test_a_simulator_of_an_edited_file_runs_the_edited_train(config):
     # loaded wagons brake a lower share of their weight (lambda_train about 74 % against
     # 116 %, Tables 1-2): less speed lost after 5 s
     assert heavier.snapshot().speed_m_s[1] > first.snapshot().speed_m_s[1]
+
+
+def test_a_kept_file_is_read_again_once_replaced(tmp_path, monkeypatch):
+    from ltd_brake_ros.inputs import schema
+
+    # every file counts as settled (a file changed more than a few seconds before it is read
+    # is kept; one changed since keeps its signature only within a time-stamp tick)
+    monkeypatch.setattr(schema, "_SETTLED_NS", -1)
+    path = tmp_path / "train.yaml"
+    path.write_text("name: a\n")
+    first = schema.read_input(path)
+    assert schema.read_input(path) is first  # kept: not read again
+    # an editor's save: a new file renamed over the old one, same size and times
+    st = os.stat(path)
+    new = tmp_path / "train.yaml.new"
+    new.write_text("name: b\n")
+    os.utime(new, ns=(st.st_atime_ns, st.st_mtime_ns))
+    os.replace(new, path)
+    assert schema.read_input(path) == b"name: b\n"
