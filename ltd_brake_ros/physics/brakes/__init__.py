@@ -18,11 +18,13 @@ A brake model is one module of this package that defines:
 2. ``compile(consist, params, force_max_N)`` -> :class:`BrakeArrays`: per-vehicle arrays, built
    once, never mutated; ``force_max_N`` is the full block force from :func:`friction.compile`.
 3. ``initial_state(arrays)`` -> :class:`BrakeState`: the model's only mutable state, released
-   brakes; the simulator's reset copies it.
-4. ``advance(arrays, state, events, t0, t1)``, compiled with numba: every vehicle's block force
-   from t0 to t1 [s] under the :class:`CommandEvents` issued at the venting vehicle (the
-   driver's brake valve), in place; a command reaches vehicle i ``arrays.delay_s[i]`` after it
-   was issued. The result must not depend on how [t0, t1] is split into steps.
+   brakes (with the scratch rows its advance needs in ``work``); the simulator's reset copies it.
+4. ``advance(arrays, state, events, t0, t1)``, compiled with numba without reference counting
+   (:func:`~ltd_brake_ros.physics.equations.jit_step`: it allocates nothing): every vehicle's
+   block force from t0 to t1 [s] under the :class:`CommandEvents` issued at the venting
+   vehicle (the driver's brake valve), in place; a command reaches vehicle i
+   ``arrays.delay_s[i]`` after it was issued. The result must not depend on how [t0, t1] is
+   split into steps.
 5. Events and snapshot: the simulator raises ``brake_applied`` and ``brake_released`` when the
    commands change; ``snapshot_extras(arrays, state)`` returns the model's further quantities
    (per-vehicle arrays, units in the keys; ``{}`` for none), the snapshot always shows the
@@ -42,7 +44,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import parameters
-from ..equations import jit
+from ..equations import jit_step
 from . import friction, linear_ramp, uic_empirical, uic_pipe
 from .base import EMERGENCY, SERVICE, BrakeArrays, BrakeState, CommandEvents, CompileError
 
@@ -59,7 +61,7 @@ MODELS = {m.NAME: m for m in (
 DEFAULT_MODEL = uic_empirical.NAME
 
 
-@jit
+@jit_step
 def advance(arrays, state, events, t0, t1):
     """Advance the block forces of the model ``arrays.model`` from t0 to t1 [s] (in place)."""
     if arrays.model == uic_empirical.ID:

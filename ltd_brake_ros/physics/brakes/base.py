@@ -54,6 +54,9 @@ class BrakeState(NamedTuple):
         Index of the next command event each vehicle has not yet received.
     extra : ndarray, shape (n, k)
         The model's other state, columns named by the model (k = 0 for none).
+    work : ndarray, shape (k, n)
+        Scratch rows of the model's advance, which allocates nothing (k = 0 for none); no
+        state: their contents mean nothing between advances.
     """
 
     force_N: np.ndarray
@@ -61,6 +64,7 @@ class BrakeState(NamedTuple):
     level_kind: np.ndarray
     next_event: np.ndarray
     extra: np.ndarray
+    work: np.ndarray
 
     def copy(self) -> "BrakeState":
         """An independent copy."""
@@ -127,7 +131,7 @@ class CommandEvents(NamedTuple):
         return CommandEvents(t, lv, kd, n + 1)
 
 
-def released_state(n: int, extra_columns: int = 0) -> BrakeState:
+def released_state(n: int, extra_columns: int = 0, work_rows: int = 0) -> BrakeState:
     """Brake state of a released train that has received no command.
 
     Parameters
@@ -136,13 +140,15 @@ def released_state(n: int, extra_columns: int = 0) -> BrakeState:
         Vehicles.
     extra_columns : int, optional
         Columns of the model's own state.
+    work_rows : int, optional
+        Scratch rows of n values for the model's advance.
 
     Returns
     -------
     BrakeState
     """
     return BrakeState(np.zeros(n), np.zeros(n), np.zeros(n, np.int64), np.zeros(n, np.int64),
-                      np.zeros((n, extra_columns)))
+                      np.zeros((n, extra_columns)), np.zeros((work_rows, n)))
 
 
 def vent_delay_s(consist, t_app_s: float, v_air_m_s: float, simultaneous: bool) -> np.ndarray:

@@ -67,9 +67,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..equations import centre_offsets_m, jit
+from ..equations import centre_offsets_m, jit, jit_step
 from ..parameters import Fittable, parameter
-from .base import EMERGENCY, OVERCHARGE, BrakeArrays, BrakeState
+from .base import EMERGENCY, OVERCHARGE, BrakeArrays, BrakeState, released_state
 
 NAME = "uic_brake_pipe"
 #: Registry id: selects this model's branch of the jitted dispatch.
@@ -132,6 +132,11 @@ X_MODE = 14  # position of the vehicle's driver's brake valve in the current ste
 X_EM_OPEN = 15  # opening of its emergency orifice in the current step [-]
 X_ACC_P = 16  # acceleration chamber, absolute [Pa]
 N_EXTRA = 17
+
+#: Rows of ``BrakeState.work`` the advance uses: the pipe step's tridiagonal system (sub-,
+#: main and super-diagonal, right-hand side), the face conductances and the pressures before
+#: the step.
+N_WORK = 6
 
 # driver's brake valve positions
 _RELEASE, _SERVICE, _EMERGENCY = 0, 1, 2
@@ -393,15 +398,15 @@ def initial_state(arrays: BrakeArrays) -> BrakeState:
     coef = arrays.coef
     n = coef.shape[0]
     p_run = coef[0, S_P_RUN]
-    extra = np.zeros((n, N_EXTRA))
+    state = released_state(n, N_EXTRA, N_WORK)
+    extra = state.extra
     for col in (X_P, X_CR, X_AUX, X_REF, X_ER):
         extra[:, col] = p_run
     extra[:, X_QS] = P_ATM
     extra[:, X_ACC_P] = P_ATM
     extra[:, X_GRID] = -1.0
     extra[:, X_T_ACT] = -1e9  # long before any command
-    return BrakeState(np.zeros(n), np.zeros(n), np.zeros(n, np.int64), np.zeros(n, np.int64),
-                      extra)
+    return state
 
 
 # --------------------------------------------------------------------------- equations
@@ -724,7 +729,7 @@ def _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold):
         state.force_N[i] = arrays.force_max_N[i] * pc / p_cmax
 
 
-@jit
+@jit_step
 def advance(arrays, state, events, t0, t1):
     """Advance pipe and distributors on their time grid up to t1 [s] (state updated in place).
 
@@ -740,9 +745,9 @@ def advance(arrays, state, events, t0, t1):
     if k1 <= k:
         extra[0, X_GRID] = float(k)
         return
-    n = extra.shape[0]
-    a, b, c, rhs = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    work, pold = np.empty(n), np.empty(n)
+    scratch = state.work
+    a, b, c, rhs, work, pold = (scratch[0], scratch[1], scratch[2], scratch[3], scratch[4],
+                                scratch[5])
     while k < k1:
         _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold)
         k += 1
