@@ -203,5 +203,19 @@ def json_by_key(document: dict) -> str:
 
     if not document:
         return "{}"
-    return "{\n" + ",\n".join(f"  {json.dumps(str(k))}: {json.dumps(v)}"
+    encode = _SCALAR_JSON.get
+    return "{\n" + ",\n".join(f"  {json.dumps(str(k))}: {encode(type(v), json.dumps)(v)}"
                               for k, v in document.items()) + "\n}"
+
+
+def _finite_or_json(x: float) -> str:
+    """A float as the json module writes it: its repr when finite."""
+    import json
+
+    return repr(x) if x - x == 0.0 else json.dumps(x)
+
+
+#: JSON of the values a summary mostly holds, by exact type, written as the json module
+#: writes them without the encoder it builds for every call.
+_SCALAR_JSON = {float: _finite_or_json, int: repr, bool: lambda b: "true" if b else "false",
+                type(None): lambda _: "null"}
