@@ -132,6 +132,32 @@ def lut_segment(table, x):
     return lo
 
 
+@jit_inline
+def lut_segment_near(table, x, guess):
+    """:func:`lut_segment`, trying segment ``guess`` first (an earlier lookup's result).
+
+    The kernel looks each coupler's deflection up several times per step, and it moves little
+    between lookups: the guess almost always holds, which spares the search (whose branches
+    the processor cannot predict).
+
+    Parameters
+    ----------
+    table : ndarray, shape (rows, m)
+        As for :func:`lut_segment`.
+    x : float
+    guess : int
+        A segment index (any value: one outside 0 to m - 2 is ignored).
+
+    Returns
+    -------
+    int
+        The same as ``lut_segment(table, x)``.
+    """
+    if 0 <= guess < table.shape[1] - 1 and table[0, guess] <= x < table[0, guess + 1]:
+        return guess
+    return lut_segment(table, x)
+
+
 @jit
 def curve_resistance_N_per_kN(radius_m):
     """Curve resistance per unit weight, Roeckl's formula for standard gauge.

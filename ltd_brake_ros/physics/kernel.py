@@ -309,13 +309,15 @@ class _Step(NamedTuple):
 
 
 class _Work(NamedTuple):
-    """Outputs of a residual evaluation: residual, Jacobian pieces, forces."""
+    """Outputs of a residual evaluation: residual, Jacobian pieces, forces; and each coupler's
+    table segment, where the next evaluation looks its deflection up first."""
 
     g: np.ndarray
     diag: np.ndarray
     cj: np.ndarray
     fc: np.ndarray
     fair: np.ndarray
+    segment: np.ndarray
 
 
 @jit_step
@@ -463,6 +465,7 @@ def _residual(u, s, cp, fr_arrays, w):
     kind = fr_arrays.kind
     model, table, coef = cp.model, cp.table, cp.coef
     g, diag, cj, fc, fair = w.g, w.diag, w.cj, w.fc, w.fair
+    seg = w.segment
     n = u.shape[0]
     nc = n - 1
     inv_bh = 1.0 / bh
@@ -473,7 +476,7 @@ def _residual(u, s, cp, fr_arrays, w):
             # the coupler behind vehicle i (one pass: its force is at hand for both ends)
             rate = u[i] - u[i + 1]
             d = xhat[i] - xhat[i + 1] + bh * rate
-            f, kd, kr = couplers.force(model, table, coef, d, rate)
+            f, kd, kr, seg[i] = couplers.force_near(model, table, coef, d, rate, seg[i])
             fc[i] = f
             cj[i] = bh * kd + kr
             g0 += f
@@ -684,12 +687,83 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
     done : int
         Nominal steps completed.
     """
+    n = state.x_m.shape[0]
+    nc = max(n - 1, 1)
+    mass, axles = model.train.mass_kg, model.train.axles
+    tol = np.empty(n)
+    res_a = np.empty((n, 3))
+    for i in range(n):
+        tol[i] = options.newton_rtol * mass[i] * 9.81
+        a0, a1, a2 = resistance_coefficients(mass[i], axles[i])
+        res_a[i, 0] = a0
+        res_a[i, 1] = a1
+        res_a[i, 2] = a2
+    fb = brake_state.force_N
+    ws = _Workspace(
+        np.empty(n), np.empty(n), np.empty(n), np.empty(n, np.bool_), np.empty(n, np.bool_),
+        np.empty(n), tol, res_a, np.empty(n), np.empty(n), np.empty(n), np.empty(1),
+        _Work(np.empty(n), np.empty(n), np.empty(nc), state.coupler_force_N, np.empty(n),
+              np.zeros(nc, np.int64)),
+        _Scratch(np.empty(n), np.empty(n), np.empty(n),
+                 _Work(np.empty(n), np.empty(n), np.empty(nc), np.empty(nc), np.empty(n),
+                       np.zeros(nc, np.int64))),
+        np.empty_like(fb), np.empty_like(brake_state.level),
+        np.empty_like(brake_state.level_kind), np.empty_like(brake_state.next_event),
+        np.empty_like(brake_state.extra), np.empty_like(state.traction_force_N))
+    return _run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats, options,
+                     watch_stop, ws)
+
+
+@jit_step
+def _copy_undo(fb, lvl, kind, nxt, extra, ftr, fb_to, lvl_to, kind_to, nxt_to, extra_to, ftr_to):
+    """Copy what a rejected step must undo: the brake state's arrays and the applied traction."""
+    for i in range(fb.shape[0]):
+        fb_to[i] = fb[i]
+        lvl_to[i] = lvl[i]
+        kind_to[i] = kind[i]
+        nxt_to[i] = nxt[i]
+        ftr_to[i] = ftr[i]
+        for j in range(extra.shape[1]):
+            extra_to[i, j] = extra[i, j]
+
+
+class _Workspace(NamedTuple):
+    """Arrays of :func:`_run_loop`, allocated once per call of :func:`run_steps`."""
+
+    u: np.ndarray
+    xhat: np.ndarray
+    vhat: np.ndarray
+    stuck0: np.ndarray
+    stuck1: np.ndarray
+    fa_scale: np.ndarray
+    tol: np.ndarray
+    res_a: np.ndarray
+    fx: np.ndarray
+    fgrade: np.ndarray
+    rcurve: np.ndarray
+    bh_step: np.ndarray
+    work: _Work
+    scratch: "_Scratch"
+    save_fb: np.ndarray
+    save_lvl: np.ndarray
+    save_kind: np.ndarray
+    save_next: np.ndarray
+    save_extra: np.ndarray
+    save_ftr: np.ndarray
+
+
+@jit_step
+def _run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats, options,
+              watch_stop, ws):
+    """The step loop of :func:`run_steps` (same arguments and results, plus its workspace).
+
+    Without reference counting: it allocates nothing, and numba would otherwise count a
+    reference to every array of every bundle it touches or passes on, each step.
+    """
     # bundle fields bound once: the loops below then touch plain arrays only
     train = model.train
     fr_arrays = model.friction
     cp = model.couplers
-    band = cp.band_m_s
-    mass = train.mass_kg
     x, v, xp, vp, stuck = state.x_m, state.v_m_s, state.x_prev_m, state.v_prev_m_s, state.stuck
     ftr, fbrake, fc = state.traction_force_N, state.brake_force_N, state.coupler_force_N
     peak_draft, t_draft = state.peak_draft_N, state.peak_draft_time_s
@@ -708,39 +782,25 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
     h_min = h * MIN_STEP_FRACTION
     n = x.shape[0]
     nc = n - 1
-    u = np.empty(n)
-    xhat = np.empty(n)
-    vhat = np.empty(n)
-    stuck0 = np.empty(n, np.bool_)
-    stuck1 = np.empty(n, np.bool_)
-    fa_scale = np.empty(n)
-    tol = np.empty(n)
-    res_a = np.empty((n, 3))
-    for i in range(n):
-        tol[i] = options.newton_rtol * mass[i] * 9.81
-        a0, a1, a2 = resistance_coefficients(mass[i], train.axles[i])
-        res_a[i, 0] = a0
-        res_a[i, 1] = a1
-        res_a[i, 2] = a2
-    w = _Work(np.empty(n), np.empty(n), np.empty(max(nc, 1)), fc, np.empty(n))
+    u, xhat, vhat, stuck0, stuck1 = ws.u, ws.xhat, ws.vhat, ws.stuck0, ws.stuck1
+    fa_scale, tol, res_a, fx = ws.fa_scale, ws.tol, ws.res_a, ws.fx
+    fgrade, rcurve, bh_step = ws.fgrade, ws.rcurve, ws.bh_step
+    w, scratch = ws.work, ws.scratch
     fair = w.fair
-    scratch = _Scratch(np.empty(n), np.empty(n), np.empty(n),
-                       _Work(np.empty(n), np.empty(n), np.empty(max(nc, 1)),
-                             np.empty(max(nc, 1)), np.empty(n)))
-    fx = np.empty(n)
-    fgrade = np.empty(n)
-    rcurve = np.empty(n)
     xlo = cp.valid_lo_m
     xhi = cp.valid_hi_m
     # what a rejected step undoes: the brake model's state and the applied traction
-    save_fb, save_lvl = np.empty_like(fb), np.empty_like(brake_state.level)
-    save_kind = np.empty_like(brake_state.level_kind)
-    save_next = np.empty_like(brake_state.next_event)
-    save_extra, save_ftr = np.empty_like(brake_state.extra), np.empty_like(ftr)
-    bh_step = np.empty(1)
+    save_fb, save_lvl, save_kind = ws.save_fb, ws.save_lvl, ws.save_kind
+    save_next, save_extra, save_ftr = ws.save_next, ws.save_extra, ws.save_ftr
+    lvl, lkind, nxt, extra = (brake_state.level, brake_state.level_kind, brake_state.next_event,
+                              brake_state.extra)
     s = _Step(xhat, vhat, bh_step, fx, train.meff_kg, tol, res_a, fa_scale, rcurve,
               train.resist, v_stick)
     retried = False  # the step being tried follows a rejection
+    # on a track of one section every vehicle's gradient and curve forces stay as they are
+    fixed_track = model.track.sections.shape[1] == 1
+    if fixed_track:
+        track_forces(x, train, model.track, fgrade, rcurve)
     for _step in range(nsteps):
         t_end = t + h
         tc = t
@@ -760,16 +820,13 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
                     hs, last = prop, False
                     t1 = tc + hs
             if adaptive:
-                save_fb[:] = fb
-                save_lvl[:] = brake_state.level
-                save_kind[:] = brake_state.level_kind
-                save_next[:] = brake_state.next_event
-                save_extra[:] = brake_state.extra
-                save_ftr[:] = ftr
+                _copy_undo(fb, lvl, lkind, nxt, extra, ftr,
+                           save_fb, save_lvl, save_kind, save_next, save_extra, save_ftr)
             brakes.advance(model.brakes, brake_state, events, tc, t1)
             # traction and track forces vary slowly: taken at the start of the step
             advance_traction(hs, inputs.traction_demand, v, ftr, model.traction)
-            track_forces(x, train, model.track, fgrade, rcurve)
+            if not fixed_track:
+                track_forces(x, train, model.track, fgrade, rcurve)
             for i in range(n):
                 fx[i] = fext[i] + ftr[i] + fgrade[i]
                 fa_scale[i] = friction.force_scale(kind[i], blocks[i], arrangement[i],
@@ -805,12 +862,8 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
                 reject = ratio > 1.0 and hs > h_min
             if reject:
                 # undo the step's changes to the state and retry shorter
-                fb[:] = save_fb
-                brake_state.level[:] = save_lvl
-                brake_state.level_kind[:] = save_kind
-                brake_state.next_event[:] = save_next
-                brake_state.extra[:] = save_extra
-                ftr[:] = save_ftr
+                _copy_undo(save_fb, save_lvl, save_kind, save_next, save_extra, save_ftr,
+                           fb, lvl, lkind, nxt, extra, ftr)
                 stats.rejected_steps += 1
                 if code == NEWTON_FAILED:
                     shrink = NEWTON_SHRINK

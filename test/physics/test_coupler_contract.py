@@ -170,3 +170,29 @@ def test_a_whole_stop(name):
         assert np.all(snap.speed_m_s <= sim.standstill_m_s)
         distance[key] = sim.stopping_distance_m
     assert distance[name] == pytest.approx(distance["table"], rel=5e-3)
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_force_near_is_force_whatever_the_segment_guess(name):
+    # the kernel passes each coupler's last table segment as a search hint: the force must not
+    # depend on it, right or wrong (out of range, another segment, a stale one)
+    arrays = couplers.compile(EXAMPLES[name])
+    lo, hi = arrays.valid_lo_m, arrays.valid_hi_m
+    span = hi - lo
+    points = arrays.table[0] if arrays.table.size else []  # on a segment boundary
+    deflections = np.concatenate((np.linspace(lo - 0.2 * span, hi + 0.2 * span, 97), points))
+    m = len(points)
+    guesses = (-5, -1, 0, 1, m // 2, m - 2, m - 1, m + 3)
+    for d in deflections:
+        for rate in (-1.0, -0.5 * arrays.band_m_s, 0.0, 0.5 * arrays.band_m_s, 1.0):
+            want = couplers.force(arrays.model, arrays.table, arrays.coef, float(d), rate)
+            found = set()
+            for guess in guesses:
+                got = couplers.force_near(arrays.model, arrays.table, arrays.coef, float(d),
+                                          rate, guess)
+                assert got[:3] == want  # bit for bit
+                found.add(got[3])
+            if m:  # a table model settles on the deflection's segment, whatever it was told
+                assert len(found) == 1
+            else:  # a model without a table hands the hint back
+                assert found == set(guesses)

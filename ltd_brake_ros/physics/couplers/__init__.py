@@ -22,7 +22,9 @@ A coupler model is one module of this package that defines:
    ``MAX_STIFFNESS_N_M``.
 2. ``force(table, coef, defl_m, rate_m_s)``, compiled with numba (inlined into the kernel's
    loops, so it takes the arrays of its :class:`CouplerArrays`, not the bundle): the force
-   [N, draft positive], d(force)/d(deflection) [N/m] and d(force)/d(rate) [N/(m/s)].
+   [N, draft positive], d(force)/d(deflection) [N/m] and d(force)/d(rate) [N/(m/s)]. A model
+   that looks the deflection up in a table may also define ``force_near`` (the same, with the
+   table segment of the coupler's last lookup tried first, see :func:`force_near`).
 3. **Monotone**: the force is non-decreasing in deflection and in rate, both derivatives are
    >= 0. The kernel's Newton system is tridiagonal and symmetric positive definite, and its
    line search minimises a convex potential, only then. The contract tests check it on a grid.
@@ -32,7 +34,8 @@ A coupler model is one module of this package that defines:
    (the simulator reports how far a coupler went beyond them); ``Params.draft_strength_N`` and
    ``Params.buff_strength_N``: the strength limits (magnitudes, inf when unknown) that
    verdicts on a run use.
-6. Register: one line in :data:`MODELS` and one branch in :func:`force`.
+6. Register: one line in :data:`MODELS` and one branch in :func:`force` (and in
+   :func:`force_near` for a model that defines its own).
 7. The contract tests (``test/physics/test_coupler_contract.py``) run over every registered
    model.
 """
@@ -47,8 +50,8 @@ from ..parameters import CompileError
 from . import linear, lut_hysteresis
 from .base import CouplerArrays
 
-__all__ = ["CompileError", "CouplerArrays", "DEFAULT_MODEL", "MODELS", "force", "force_of",
-           "model_of"]
+__all__ = ["CompileError", "CouplerArrays", "DEFAULT_MODEL", "MODELS", "force", "force_near",
+           "force_of", "model_of"]
 
 #: Registered coupler models by name.
 MODELS = {m.NAME: m for m in (
@@ -70,6 +73,26 @@ def force(model, table, coef, defl_m, rate_m_s):
     if model == linear.ID:
         return linear.force(table, coef, defl_m, rate_m_s)
     return math.nan, 0.0, 0.0
+
+
+@jit_inline
+def force_near(model, table, coef, defl_m, rate_m_s, segment):
+    """:func:`force`, plus a table segment to look the deflection up from first.
+
+    For the kernel, which evaluates each coupler several times per step at nearly the same
+    deflection: ``segment`` is what the last call for this coupler returned (any int at
+    first); the force is the same whatever it is. A model without a table returns it as is.
+
+    Returns
+    -------
+    force_N, dforce_ddefl_N_m, dforce_drate_N_s_m : float
+    segment : int
+        The segment to pass in the next call for this coupler.
+    """
+    if model == lut_hysteresis.ID:
+        return lut_hysteresis.force_near(table, coef, defl_m, rate_m_s, segment)
+    f, kd, kr = force(model, table, coef, defl_m, rate_m_s)
+    return f, kd, kr, segment
 
 
 def force_of(arrays: CouplerArrays, defl_m: float, rate_m_s: float) -> tuple[float, float, float]:

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import parameters
-from ..equations import jit_inline, lut_segment
+from ..equations import jit_inline, lut_segment_near
 from ..parameters import REQUIRED, CompileError, Fittable, parameter
 from .base import MAX_DEFLECTION_M, MAX_FORCE_N, MAX_STIFFNESS_N_M, CouplerArrays
 
@@ -323,12 +323,20 @@ def _check_curves(d, columns: dict, key: dict, mm: list) -> None:
 @jit_inline
 def force(table, coef, defl_m, rate_m_s):
     """Coupler force [N, draft positive], d/d(deflection) [N/m] and d/d(rate) [N/(m/s)]."""
-    f, kd, kr, _seg, _band = eq3(table, coef[INV_V_TH], defl_m, rate_m_s)
+    f, kd, kr, _seg, _band = eq3(table, coef[INV_V_TH], defl_m, rate_m_s, -1)
     return f, kd, kr
 
 
 @jit_inline
-def eq3(table, inv_v_th, defl_m, rate_m_s):
+def force_near(table, coef, defl_m, rate_m_s, segment):
+    """:func:`force`, looking the deflection up from table segment ``segment`` first; also
+    returns the segment it lies in (the next lookup's guess)."""
+    f, kd, kr, seg, _band = eq3(table, coef[INV_V_TH], defl_m, rate_m_s, segment)
+    return f, kd, kr, seg
+
+
+@jit_inline
+def eq3(table, inv_v_th, defl_m, rate_m_s, guess):
     """Coupler force with hysteresis, Eq. 3, and its partial derivatives.
 
     F = (F_L + F_U)/2 + |F_L - F_U|/2 * clip(rate / v_th, -1, 1), linear interpolation in the
@@ -344,6 +352,9 @@ def eq3(table, inv_v_th, defl_m, rate_m_s):
         Deflection x_front - x_rear, draft positive [m].
     rate_m_s : float
         Deflection speed [m/s].
+    guess : int
+        Table segment to try first (see
+        :func:`~ltd_brake_ros.physics.equations.lut_segment_near`; -1: none).
 
     Returns
     -------
@@ -358,7 +369,7 @@ def eq3(table, inv_v_th, defl_m, rate_m_s):
     band : int
         -1 unloading/loading below the band, 0 inside |rate| <= v_th, +1 above.
     """
-    seg = lut_segment(table, defl_m)
+    seg = lut_segment_near(table, defl_m, guess)
     n = table.shape[1]
     k = min(max(seg, 0), n - 2)
     x0 = table[DEFLECTION, k]
@@ -399,4 +410,4 @@ def coupler_force(defl_m, rate_m_s, xs, f_load, f_unload, v_th):
         As :func:`eq3`.
     """
     table = table_of(xs, f_load, f_unload)
-    return eq3(table, 1.0 / float(v_th), float(defl_m), float(rate_m_s))
+    return eq3(table, 1.0 / float(v_th), float(defl_m), float(rate_m_s), -1)
