@@ -186,7 +186,8 @@ def _print_verdicts(verdicts) -> None:
 
 
 class _Progress:
-    """Progress of a long run on stderr (a terminal only, after 2 s of wall time)."""
+    """Progress of a long run on stderr (a terminal only, after 2 s of wall time); as a
+    context, the callback of a run, None when stderr is no terminal."""
 
     #: Wall time before progress is shown [s].
     AFTER_S = 2.0
@@ -198,8 +199,9 @@ class _Progress:
         self._shown = False
         self._enabled = self._stream.isatty()
 
-    def __enter__(self) -> "_Progress":
-        return self
+    def __enter__(self) -> "_Progress | None":
+        # nothing to call back without a terminal
+        return self if self._enabled else None
 
     def __call__(self, p) -> None:
         if not self._enabled or p.wall_s < self.AFTER_S:
