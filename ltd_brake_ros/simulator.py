@@ -15,7 +15,7 @@ Contract
    that fails with an arithmetic error raises :class:`SimulationError` with one line; the
    simulator then refuses to advance until :meth:`reset`.
 4. Everything that changes lives in one :class:`SimulatorState`; :meth:`Simulator.reset`
-   replaces it by a copy of the initial one. :attr:`Simulator.stats` reports what the
+   replaces it by a new initial one. :attr:`Simulator.stats` reports what the
    integration cost.
 5. The train is judged against its strength and adhesion limits as it runs
    (:mod:`~ltd_brake_ros.verdicts`): a ``limit_exceeded`` event when a coupler or vehicle
@@ -509,14 +509,10 @@ class Simulator:
                                        self.standstill_m_s, self.stick_band_m_s,
                                        self.tolerance_m_s)
         self.fext_N = np.zeros(self.n)
-        n, nc = self.n, max(self.n - 1, 1)
-        self._initial = SimulatorState(
-            0.0, 0.0, kernel.KinematicState.initial(n, self.speed_kmh / KMH_PER_MS),
-            self._brake_model.initial_state(self.model.brakes), brakes_module.CommandEvents.empty(),
-            kernel.new_stats(), np.zeros(nc, bool))
         self.limits: TrainLimits = compiled.limits
-        self._initial.watch = Watch(self.limits)
-        self.reset()
+        # what the state at time 0 is built from, anew at each reset (as cheap as a copy)
+        self._initial = (self.n, self.speed_kmh / KMH_PER_MS, self.model.brakes, self.limits)
+        self._state = self._initial_state()
         if compiled.run_steps is None:
             self._bind_kernel()
             compiled.run_steps = self._run_steps
@@ -566,8 +562,16 @@ class Simulator:
         -------
         Snapshot
         """
-        self._state = self._initial.copy()
+        self._state = self._initial_state()
         return self.snapshot()
+
+    def _initial_state(self) -> SimulatorState:
+        """A new state at time 0: the initial speed, brakes released, nothing counted."""
+        n, v0_m_s, brakes, limits = self._initial
+        return SimulatorState(
+            0.0, 0.0, kernel.KinematicState.initial(n, v0_m_s),
+            self._brake_model.initial_state(brakes), brakes_module.CommandEvents.empty(),
+            kernel.new_stats(), np.zeros(max(n - 1, 1), bool), watch=Watch(limits))
 
     @property
     def state(self) -> SimulatorState:
