@@ -6,7 +6,8 @@ from dataclasses import dataclass
 #: Largest accepted real-time factor [-].
 MAX_REAL_TIME_FACTOR = 1000.0
 #: Default lag behind the schedule that the plant still catches up [s wall]: ten 20 ms periods,
-#: ten times the slowest chunks of a 1 000-wagon brake-pipe train on a busy 2-core machine.
+#: over twice the largest lag (55-87 ms) of a 1 000-wagon brake-pipe train at real-time factor 1
+#: on a shared 2-core machine (README, "A 1 000-wagon train live").
 DEFAULT_MAX_CATCH_UP_S = 0.2
 
 

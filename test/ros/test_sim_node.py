@@ -123,7 +123,10 @@ def test_live_plant_stops_like_the_offline_simulator(processes, probe):
     assert not chunk.successful and "read-only" in chunk.reason
     chunk, = probe.set_parameters(node, chunk_s=-0.02)
     assert not chunk.successful and "chunk_s" in chunk.reason
-    assert probe.get_parameters(node, "real_time_factor", "chunk_s") == [1.0, 0.02]
+    catch_up, = probe.set_parameters(node, max_catch_up_s=1.0)
+    assert not catch_up.successful and "read-only" in catch_up.reason
+    assert probe.get_parameters(node, "real_time_factor", "chunk_s", "max_catch_up_s") == \
+        [1.0, 0.02, 0.2]
     fast, = probe.set_parameters(node, real_time_factor=0.0)
     assert fast.successful, fast.reason
     assert probe.get_parameters(node, "real_time_factor") == [0.0]
@@ -176,8 +179,9 @@ def test_live_plant_stops_like_the_offline_simulator(processes, probe):
     times = [clock_s(c) for c in clocks[first_clock:]]
     assert times[0] == 0.0 and all(b > a for a, b in zip(times, times[1:])), "non-monotone clock"
     diag = diagnostics(probe, node)
-    for key in ("achieved_real_time_factor", "chunk_overruns", "head_speed_kmh",
-                "peak_draft_kN", "peak_buff_kN", "stop_time_s"):
+    for key in ("achieved_real_time_factor", "chunk_overruns", "schedule_lag_s",
+                "peak_schedule_lag_s", "head_speed_kmh", "peak_draft_kN", "peak_buff_kN",
+                "stop_time_s"):
         assert key in diag, key
     assert diag["_level"] in (DiagnosticStatus.OK, DiagnosticStatus.WARN)
 
