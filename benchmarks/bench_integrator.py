@@ -263,7 +263,7 @@ def end_to_end(repeats: int = 7) -> dict:
 
     The kernel: a constructed simulator advanced in 1 s chunks to the stop. The API: one
     :func:`~ltd_brake_ros.studies.runs.emergency_stop` call from a loaded consist (simulator
-    construction, run, summary). The command: ``ltd-brake simulate --scenario 6 --json`` in
+    construction, run with its chunks grouped while the stop is far, summary). The command: ``ltd-brake simulate --scenario 6 --json`` in
     this process (arguments, input files, construction, run, summary, verdicts, JSON), and
     the cost of its run and summary as it reports it, on this process's CPU clock. Best CPU time
     of ``repeats`` runs each, interleaved.
