@@ -600,7 +600,7 @@ def _step_factor(ratio, order, rejected, after_rejection):
     return grow
 
 
-@jit
+@jit_step
 def _error_ratio(u, v, vp, a, stuck, stuck0, hs, hp, tolerance):
     """Largest local error estimate of the new speeds over the tolerance (Milne's device).
 

@@ -499,7 +499,7 @@ def _distributor_branch(i, p, coef, extra):
     return q, dq
 
 
-@jit
+@jit_step
 def _pipe_step(coef, extra, dt, a, b, c, rhs, work):
     """One backward-Euler step of the pipe pressures and face flows (in ``extra``)."""
     n = coef.shape[0]
@@ -575,7 +575,7 @@ def _chamber_fill(p0, p, pc, area, volume, dt, rt, kflow):
     return pc, False
 
 
-@jit
+@jit_step
 def _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold):
     """Advance the pipe, the driver's valve and every distributor from grid point k to k + 1."""
     coef, extra = arrays.coef, state.extra
