@@ -377,10 +377,11 @@ class SimulatorState:
 class _Compiled:
     """A train compiled for the kernel, its limits and the kernel bound for its arguments."""
 
-    __slots__ = ("consist", "model", "limits", "run_steps")
+    __slots__ = ("consist", "model", "limits", "run_steps", "braked_weight_percent")
 
     def __init__(self, consist: Consist, model: kernel.TrainModel, limits: TrainLimits):
         self.consist, self.model, self.limits, self.run_steps = consist, model, limits, None
+        self.braked_weight_percent: float | None = None  # Eq. 11, once asked for
 
 
 #: Trains compiled by :func:`_compiled`, most recent last.
@@ -502,7 +503,8 @@ class Simulator:
         self.standstill_m_s = float(standstill_m_s)
         self.stick_band_m_s = float(stick_band_m_s)
         self._brakes = bool(brakes)
-        compiled = _compiled(consist, params, lut, self.track, bool(resistance), self._brakes)
+        compiled = self._compiled = _compiled(consist, params, lut, self.track,
+                                              bool(resistance), self._brakes)
         self.model = compiled.model
         self._brake_model = brakes_module.model_of(params.pneumatic)
         self._options = kernel.Options(self.max_newton_iter, self.newton_rtol,
@@ -729,6 +731,14 @@ class Simulator:
 
     def braked_weight_percent(self) -> float:
         """Train braked-weight percentage lambda_train, Eq. 11 [%]."""
+        compiled = self._compiled
+        if compiled.model is not self.model or compiled.consist is not self.consist:
+            return self._braked_weight_percent()  # a train put in by hand
+        if compiled.braked_weight_percent is None:  # the same for every simulator of it
+            compiled.braked_weight_percent = self._braked_weight_percent()
+        return compiled.braked_weight_percent
+
+    def _braked_weight_percent(self) -> float:
         return train_braked_weight_percent([v.braked_weight_t for v in self.consist.vehicles],
                                            self.mass_kg / 1000.0, self.consist.length_m)
 

@@ -1,6 +1,7 @@
 """Consist files: the train, vehicle by vehicle from the head, with the shipped vehicle types."""
 from __future__ import annotations
 
+import functools
 import os
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -201,12 +202,13 @@ class Consist:
         """Number of vehicles."""
         return len(self.vehicles)
 
-    @property
+    # summed once per consist (it is immutable)
+    @functools.cached_property
     def length_m(self) -> float:
         """Train length over buffers [m]."""
         return sum(v.length_m for v in self.vehicles)
 
-    @property
+    @functools.cached_property
     def mass_kg(self) -> float:
         """Total weight on rails [kg]."""
         return sum(v.mass_kg for v in self.vehicles)
