@@ -333,6 +333,41 @@ def paper_stops(params: BrakeParams, scenarios: Sequence[int] | None = None, *,
     return validate(params, None, list(scenarios) if scenarios else None, workers=workers)
 
 
+#: The paper's emergency stops with this model: every stopping distance within this fraction
+#: of LTDPoliTo at both speeds (the peak forces keep the tolerances of
+#: :func:`~ltd_brake_ros.studies.calibration.validation_targets`).
+DISTANCE_TOL = 0.01
+
+
+def paper_targets(rows) -> list[tuple[str, bool, str]]:
+    """The targets of the paper's emergency stops (Tables 1-2) with the brake-pipe model.
+
+    The peak-force and position targets of
+    :func:`~ltd_brake_ros.studies.calibration.validation_targets`, and every stopping distance
+    within :data:`DISTANCE_TOL` of LTDPoliTo (in place of its per-speed tolerances, which are
+    those of the paper's own model).
+
+    Parameters
+    ----------
+    rows : list of ValidationRow
+
+    Returns
+    -------
+    list of (str, bool, str)
+        Criterion, met, and the worst case in words.
+    """
+    from .calibration import validation_targets
+
+    out = [t for t in validation_targets(rows) if not t[0].startswith("stopping distance")]
+    if rows:
+        err = [r.distance_error_percent for r in rows]
+        k = int(np.argmax(np.abs(err)))
+        out.append((f"stopping distance within +/-{100 * DISTANCE_TOL:g} % of LTDPoliTo",
+                    bool(np.all(np.abs(err) <= 100 * DISTANCE_TOL)),
+                    f"worst {err[k]:+.2f} % (run {rows[k].scenario.number})"))
+    return out
+
+
 def pipe_params(params: BrakeParams) -> uic_pipe.Params:
     """The brake-pipe model's parameters of a run's brake parameters.
 
