@@ -257,8 +257,9 @@ class Params:
                                         "(fitted to UIC 540 P filling 3-5 s) [bar/s]",
                                         key="fill_rate_P_bar_s", scale=BAR, lo=0.01,
                                         lo_open=True, hi=50.0)
-    fill_rate_G_Pa_s: float = parameter(0.11 * BAR, "cylinder filling rate after inshot in G "
-                                        "(fitted to UIC 540 G filling 18-30 s) [bar/s]",
+    fill_rate_G_Pa_s: float = parameter(0.09 * BAR, "cylinder filling rate after inshot in G "
+                                        "(fitted to UIC 540 G filling 18-30 s and the ETCS "
+                                        "conversion model's G build-up time) [bar/s]",
                                         key="fill_rate_G_bar_s", scale=BAR, lo=0.001,
                                         lo_open=True, hi=50.0)
     lap_time_constant_P_s: float = parameter(0.4, "time constant of the final approach to the "
