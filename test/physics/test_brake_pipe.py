@@ -9,8 +9,13 @@ from ltd_brake_ros.physics.brakes import EMERGENCY, SERVICE, uic_pipe
 from ltd_brake_ros.simulator import Commands, Simulator
 from ltd_brake_ros.studies import brake_pipe_validation as bpv
 
-PARAMS = uic_pipe.Params()
+PARAMS = load_brake_params(bpv.PRESET).pneumatic  # the shipped preset
 BAR = 1e5
+
+
+def test_the_preset_is_the_model_defaults():
+    # the study's functions fall back to the defaults: they must be the figures of the preset
+    assert PARAMS == uic_pipe.Params()
 
 
 @pytest.mark.parametrize("length_m", [500.0, 1000.0])
@@ -143,6 +148,14 @@ def test_emergency_build_up_grows_faster_than_linearly_and_stays_below_etcs():
     from ltd_brake_ros.physics.brakes import uic_empirical
 
     assert te[1500.0] > 1.5 * bpv.equivalent_build_up_s(1500.0, "P", uic_empirical.Params())
+
+
+@pytest.mark.parametrize("length_m", [300.0, 500.0, 700.0, 900.0])
+def test_g_build_up_time_within_30_percent_of_etcs_up_to_900_m(length_m):
+    # the ETCS conversion model of a freight train in G up to 900 m (SUBSET-026 A.3.8); with
+    # the G filling inside the UIC 540 window (18-30 s) ours is within +/-30 % of it
+    ratio = bpv.equivalent_build_up_s(length_m, "G", PARAMS) / bpv.etcs_build_up_s(length_m, "G")
+    assert 0.7 <= ratio <= 1.3
 
 
 def test_empirical_build_up_time_is_its_mean_delay_plus_time_constant():
