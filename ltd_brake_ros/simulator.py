@@ -661,7 +661,7 @@ class Simulator:
     @property
     def stopped(self) -> bool:
         """True when every vehicle is slower than ``standstill_m_s``."""
-        return bool(np.all(np.abs(self._state.kinematics.v_m_s) <= self.standstill_m_s))
+        return bool((np.abs(self._state.kinematics.v_m_s) <= self.standstill_m_s).all())
 
     @property
     def peak_draft_N(self) -> np.ndarray:
@@ -908,6 +908,8 @@ class Simulator:
     def _report_out_of_range(self, events: list) -> None:
         nc = self.n - 1
         k = self._state.kinematics
+        if nc <= 0 or k.out_of_range_time_s[:nc].max() < 0.0:
+            return  # no coupler has left its range (the time is -1 until one does)
         reported = self._state.reported_out_of_range
         new = (k.out_of_range_time_s[:nc] >= 0.0) & ~reported[:nc]
         for j in np.flatnonzero(new):
