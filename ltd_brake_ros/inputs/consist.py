@@ -317,8 +317,8 @@ def _vehicle_types(source: str, data: Any, path: str) -> dict[str, dict]:
 
 def _shipped_library() -> tuple[str, bytes]:
     """The shipped vehicle library ``vehicles.yaml``: its name and contents."""
-    shipped = config_dir() / "vehicles.yaml"
-    return str(shipped), read_input(shipped)
+    shipped = os.path.join(config_dir(), "vehicles.yaml")
+    return shipped, read_input(shipped)
 
 
 def _library_types(data: Any, source: str) -> dict[str, dict]:

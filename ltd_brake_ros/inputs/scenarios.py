@@ -1,6 +1,7 @@
 """The scenario catalogue: the runs of the paper's Tables 1-2."""
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field, replace
 
 from .consist import Consist, load_consist
@@ -47,7 +48,7 @@ def load_scenarios() -> dict[int, Scenario]:
 def _catalogue() -> dict[int, Scenario]:
     """The shipped catalogue, parsed once per version of the file; callers copy the mutable
     parts."""
-    return load_once(config_dir() / "scenarios.yaml", _catalogue_of)
+    return load_once(os.path.join(config_dir(), "scenarios.yaml"), _catalogue_of)
 
 
 def _catalogue_of(data, p: str) -> dict[int, Scenario]:
@@ -80,6 +81,6 @@ def get_scenario(name: str | int) -> Scenario:
     text = str(name).strip().lower().removeprefix("scenario").strip("_ -")
     if text.isdigit() and int(text) in catalogue:
         found = catalogue[int(text)]
-        return replace(found, paper=dict(found.paper))
+        return Scenario(found.number, found.consist_file, found.speed_kmh, dict(found.paper))
     raise InputError("scenario", "", f"unknown scenario {name!r}; known: "
                      f"{', '.join(str(k) for k in sorted(catalogue))}")

@@ -113,12 +113,18 @@ def resolve_config_path(path: str | os.PathLike, base: Path | None = None) -> Pa
     # os.path on strings: pathlib costs more than the file system here
     p = os.path.expanduser(os.fspath(path))
     if os.path.isabs(p):
-        return Path(p)
+        return _path(p)
     for root in ([base] if base else []) + [os.getcwd(), config_dir()]:
         candidate = os.path.join(root, p)
         if os.path.isfile(candidate):
-            return Path(candidate)
-    return Path(p)
+            return _path(candidate)
+    return _path(p)
+
+
+@functools.lru_cache(maxsize=256)
+def _path(text: str) -> Path:
+    """``Path(text)``, parsed once (paths are immutable)."""
+    return Path(text)
 
 
 #: Largest input file read [bytes]; the biggest consist (5000 vehicles, one line each) is < 1 MiB.
