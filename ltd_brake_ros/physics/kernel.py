@@ -354,7 +354,10 @@ def advance_traction(h, cmd, v, ftr, tr):
             if spd < fade[i]:
                 avail *= spd / fade[i]
             target = cmd * avail * (1.0 if v[i] >= 0.0 else -1.0)
-        lagged = target + (ftr[i] - target) * math.exp(-h / tr.time_constant_s[i])
+        gap = ftr[i] - target
+        if gap != 0.0:  # (at the target: the same sum without the exponential)
+            gap *= math.exp(-h / tr.time_constant_s[i])
+        lagged = target + gap
         dmax = tr.rate_limit_N_s[i] * h
         change = min(max(lagged - ftr[i], -dmax), dmax)
         ftr[i] += change
@@ -879,7 +882,13 @@ def _run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
             stats.steps += 1
             if stats.smallest_step_s == 0.0 or hs < stats.smallest_step_s:
                 stats.smallest_step_s = hs
+            tc = t1
+            # a vehicle that entered or left the standstill band has a kink in its speed: the
+            # BDF2 history would extrapolate across it (and push a just-stopped vehicle
+            # backwards), so the next step restarts with backward Euler
+            kink = False
             for i in range(n):
+                kink |= stuck1[i] != stuck0[i]
                 stuck[i] = stuck1[i]
                 xp[i] = x[i]
                 vp[i] = v[i]
@@ -887,17 +896,11 @@ def _run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
                 acc[i] = (u[i] - vhat[i]) / bh
                 v[i] = u[i]
                 fbrake[i] = fair[i]
-            control[ACCEL_VALID] = 1.0
-            # a vehicle that entered or left the standstill band has a kink in its speed: the
-            # BDF2 history would extrapolate across it (and push a just-stopped vehicle
-            # backwards), so the next step restarts with backward Euler
-            hp = hs
-            for i in range(n):
-                if stuck[i] != stuck0[i]:
-                    hp = 0.0
-                    break
-            tc = t1
-            for j in range(nc):
+                if i == 0:
+                    continue
+                # the coupler ahead of vehicle i, now that both its ends have moved: peaks
+                # and excursions beyond its valid range
+                j = i - 1
                 f = fc[j]
                 if f > peak_draft[j]:
                     peak_draft[j] = f
@@ -905,7 +908,7 @@ def _run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
                 if f < peak_buff[j]:
                     peak_buff[j] = f
                     t_buff[j] = tc
-                d = x[j] - x[j + 1]
+                d = x[j] - x[i]
                 out = d - xhi if d > xhi else (xlo - d if d < xlo else 0.0)
                 if out > 0.0:
                     if t_lut_out[j] < 0.0:
@@ -913,6 +916,8 @@ def _run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
                     if out > lut_out[j]:
                         lut_out[j] = out
                         t_lut_max[j] = tc
+            control[ACCEL_VALID] = 1.0
+            hp = 0.0 if kink else hs
             if last:
                 break
         t = t_end
