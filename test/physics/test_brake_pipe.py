@@ -109,13 +109,24 @@ def test_simulator_shows_pipe_and_cylinder_pressures_and_stops_the_train():
     assert abs(sim.stopping_distance_m - empirical.stopping_distance_m) < 60.0
 
 
-def test_paper_emergency_stops_within_1_percent_of_ltdpolito():
+def test_paper_emergency_stops_within_1_percent_of_ltdpolito_and_their_peak_forces():
     # with the valve delay and inshot fitted to Tables 1-2 (the only values the UIC 540
     # windows leave free), every stopping distance is within 1 % of the paper's model
     rows = bpv.paper_stops(load_brake_params(bpv.PRESET))
     assert len(rows) == 12
     for r in rows:
         assert abs(r.distance_error_percent) < 1.0, r.scenario.number
+    met = {what: ok for what, ok, _ in bpv.paper_targets(rows)}
+    assert met["stopping distance within +/-1 % of LTDPoliTo"]
+    assert met["peak buff within +/-20 % of the paper"]
+    # the peak draft at the stop, between the locomotive and the first wagon, within 10 %
+    # wherever the paper has it there; run 12's is the run-out wave at coupler 5, which this
+    # preset's slow tail filling does not release (README: brake-pipe validation)
+    for r in rows:
+        paper = r.scenario.paper
+        if paper["draft_coupler"] == 1:
+            assert r.result.peak_draft_coupler == 1, r.scenario.number
+            assert abs(r.result.peak_draft_kN / paper["draft_kN"] - 1.0) <= 0.10, r.scenario.number
 
 
 def test_radio_distributed_power_brakes_the_rear_sooner():
