@@ -883,6 +883,8 @@ def _run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
             if stats.smallest_step_s == 0.0 or hs < stats.smallest_step_s:
                 stats.smallest_step_s = hs
             tc = t1
+            for i in range(n):  # a loop of its own: the compiler vectorises the division
+                acc[i] = (u[i] - vhat[i]) / bh
             # a vehicle that entered or left the standstill band has a kink in its speed: the
             # BDF2 history would extrapolate across it (and push a just-stopped vehicle
             # backwards), so the next step restarts with backward Euler
@@ -893,7 +895,6 @@ def _run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
                 xp[i] = x[i]
                 vp[i] = v[i]
                 x[i] = xhat[i] + bh * u[i]
-                acc[i] = (u[i] - vhat[i]) / bh
                 v[i] = u[i]
                 fbrake[i] = fair[i]
                 if i == 0:
