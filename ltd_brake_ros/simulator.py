@@ -28,6 +28,7 @@ retarding forces, positive.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import threading
 from dataclasses import dataclass, field
@@ -327,6 +328,8 @@ class SimulatorState:
         Counters, one :data:`~ltd_brake_ros.physics.kernel.STATS_DTYPE` record.
     reported_out_of_range : ndarray of bool
         Couplers whose excursion beyond their valid range has been reported.
+    reported_out_of_range_count : int
+        How many of them.
     brake_command : tuple of (float, int)
         Brake level and kind last commanded.
     emergency : bool
@@ -364,6 +367,7 @@ class SimulatorState:
     failed: bool = False
     command_speed_m_s: float = 0.0
     watch: Watch | None = None
+    reported_out_of_range_count: int = 0
 
     def copy(self) -> "SimulatorState":
         """An independent copy (arrays copied)."""
@@ -377,10 +381,10 @@ class SimulatorState:
 class _Compiled:
     """A train compiled for the kernel, its limits and the kernel bound for its arguments."""
 
-    __slots__ = ("consist", "model", "limits", "run_steps", "braked_weight_percent")
+    __slots__ = ("consist", "model", "limits", "run_loop", "braked_weight_percent")
 
     def __init__(self, consist: Consist, model: kernel.TrainModel, limits: TrainLimits):
-        self.consist, self.model, self.limits, self.run_steps = consist, model, limits, None
+        self.consist, self.model, self.limits, self.run_loop = consist, model, limits, None
         self.braked_weight_percent: float | None = None  # Eq. 11, once asked for
 
 
@@ -515,11 +519,12 @@ class Simulator:
         # what the state at time 0 is built from, anew at each reset (as cheap as a copy)
         self._initial = (self.n, self.speed_kmh / KMH_PER_MS, self.model.brakes, self.limits)
         self._state = self._initial_state()
-        if compiled.run_steps is None:
+        self._workspace: tuple | None = None  # (kinematics, brake state, the kernel's workspace)
+        if compiled.run_loop is None:
             self._bind_kernel()
-            compiled.run_steps = self._run_steps
+            compiled.run_loop = self._run_loop
         else:  # bound for this model's arguments: the same types for every simulator of it
-            self._run_steps, self._bound_model = compiled.run_steps, self.model
+            self._run_loop, self._bound_model = compiled.run_loop, self.model
 
     @staticmethod
     def _compile(consist: Consist, params: BrakeParams, coupler, track: Track, resistance: bool,
@@ -661,7 +666,10 @@ class Simulator:
     @property
     def stopped(self) -> bool:
         """True when every vehicle is slower than ``standstill_m_s``."""
-        return bool((np.abs(self._state.kinematics.v_m_s) <= self.standstill_m_s).all())
+        v = self._state.kinematics.v_m_s
+        if abs(v[0]) > self.standstill_m_s:
+            return False  # the head still moves (the usual case, without a pass over the train)
+        return bool((np.abs(v) <= self.standstill_m_s).all())
 
     @property
     def peak_draft_N(self) -> np.ndarray:
@@ -754,15 +762,23 @@ class Simulator:
         -------
         Snapshot
         """
-        n = self.n
         st = self._state
         k = st.kinematics
-        return Snapshot(st.time_s,
-                        self.track.start_chainage_m + k.x_m - self.model.train.centre_offset_m,
-                        k.v_m_s.copy(), k.brake_force_N.copy() if self._brakes else np.zeros(n),
-                        k.traction_force_N.copy(), st.brakes.force_N.copy(),
-                        k.coupler_force_N[: n - 1].copy(), tuple(events), self.stopped,
-                        self._brake_model.snapshot_extras(self.model.brakes, st.brakes))
+        v = k.v_m_s
+        n = v.shape[0]
+        # the fields set directly: the same object as Snapshot(...) builds, without the frozen
+        # dataclass's per-field checks (a snapshot per chunk)
+        snap = object.__new__(Snapshot)
+        snap.__dict__.update(
+            time_s=st.time_s,
+            position_m=self.track.start_chainage_m + k.x_m - self.model.train.centre_offset_m,
+            speed_m_s=v.copy(),
+            brake_force_N=k.brake_force_N.copy() if self._brakes else np.zeros(n),
+            traction_force_N=k.traction_force_N.copy(), block_force_N=st.brakes.force_N.copy(),
+            coupler_force_N=k.coupler_force_N[: n - 1].copy(), events=tuple(events),
+            stopped=self.stopped,
+            extras=self._brake_model.snapshot_extras(self.model.brakes, st.brakes))
+        return snap
 
     # ------------------------------------------------------------------ integration
 
@@ -836,12 +852,16 @@ class Simulator:
         inputs = kernel.Inputs(st.traction_demand, self._external_forces())
         if self.model is not self._bound_model:
             self._bind_kernel()  # a model put in by hand may have other array types
+        ws = self._workspace
+        if ws is None or ws[0] is not st.kinematics or ws[1] is not st.brakes:
+            ws = self._new_workspace()
+        ws = ws[2]
         while remaining:
             watch = st.stop_time_s is None and st.command_time_s is not None
             try:
-                code, t, hp, done = self._run_steps(
+                code, t, hp, done = self._run_loop(
                     remaining, h, st.time_s, st.last_step_s, self.model, inputs, st.kinematics,
-                    st.brakes, st.events, st.stats[0], self._options, watch)
+                    st.brakes, st.events, st.stats[0], self._options, watch, ws)
             except ArithmeticError as exc:
                 # e.g. a division by zero in the compiled kernel; the state is part-way
                 # through a step, so only a reset recovers
@@ -880,14 +900,32 @@ class Simulator:
         return self.snapshot(tuple(events))
 
     def _bind_kernel(self) -> None:
-        """Compile (or load from the cache) the kernel for this train's bundles now, callable
-        without numba typing every bundle on every chunk."""
-        st = self._state
-        self._run_steps = kernel.bind_run_steps(
-            1, self.step_s, st.time_s, st.last_step_s, self.model,
-            kernel.Inputs(st.traction_demand, self.fext_N), st.kinematics, st.brakes, st.events,
-            st.stats[0], self._options, False)
+        """Compile (or load from the cache) the kernel's step loop for this train's bundles
+        now, callable without numba typing every bundle on every chunk."""
+        self._run_loop = kernel.bind_run_loop(*self._kernel_arguments(),
+                                              self._new_workspace()[2])
         self._bound_model = self.model
+
+    def _kernel_arguments(self) -> tuple:
+        """Arguments of :func:`~ltd_brake_ros.physics.kernel.run_steps` for one step now."""
+        st = self._state
+        return (1, self.step_s, st.time_s, st.last_step_s, self.model,
+                kernel.Inputs(st.traction_demand, self.fext_N), st.kinematics, st.brakes,
+                st.events, st.stats[0], self._options, False)
+
+    def _new_workspace(self) -> tuple:
+        """The kernel's work arrays for the current state and model, kept for the next chunks
+        (a reset or a new model needs new ones)."""
+        st = self._state
+        self._workspace = (st.kinematics, st.brakes, kernel.new_workspace(
+            self.model, st.kinematics, st.brakes, self._options))
+        return self._workspace
+
+    @functools.cached_property
+    def _run_steps(self):
+        """The whole kernel, :func:`~ltd_brake_ros.physics.kernel.run_steps`, bound for this
+        train's bundles (allocating its work arrays on each call)."""
+        return kernel.bind_run_steps(*self._kernel_arguments())
 
     def _external_forces(self) -> np.ndarray:
         """:attr:`fext_N` as the kernel takes it: n contiguous floats [N].
@@ -907,10 +945,13 @@ class Simulator:
 
     def _report_out_of_range(self, events: list) -> None:
         nc = self.n - 1
-        k = self._state.kinematics
-        if nc <= 0 or k.out_of_range_time_s[:nc].max() < 0.0:
-            return  # no coupler has left its range (the time is -1 until one does)
-        reported = self._state.reported_out_of_range
+        st = self._state
+        k = st.kinematics
+        left = int(k.step_control[kernel.OUT_OF_RANGE])  # couplers that have left their range
+        if nc <= 0 or left <= st.reported_out_of_range_count:
+            return  # none has left it since the last report
+        st.reported_out_of_range_count = left
+        reported = st.reported_out_of_range
         new = (k.out_of_range_time_s[:nc] >= 0.0) & ~reported[:nc]
         for j in np.flatnonzero(new):
             reported[j] = True

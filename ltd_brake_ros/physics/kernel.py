@@ -176,9 +176,11 @@ class KinematicState(NamedTuple):
     accel_m_s2 : ndarray
         Acceleration of each vehicle at the end of the last step, the step's own derivative
         [m/s^2] (the error estimate's predictor uses it).
-    step_control : ndarray, shape (2,)
+    step_control : ndarray, shape (3,)
         Entry :data:`NEXT_STEP`: the step the error control proposes next [s] (0: the nominal
-        step); entry :data:`ACCEL_VALID`: 1 once ``accel_m_s2`` holds a step's derivative.
+        step); entry :data:`ACCEL_VALID`: 1 once ``accel_m_s2`` holds a step's derivative;
+        entry :data:`OUT_OF_RANGE`: how many couplers have left their valid range (those with
+        ``out_of_range_time_s`` >= 0), so that a caller needs no pass over the train to know.
     """
 
     x_m: np.ndarray
@@ -207,7 +209,7 @@ class KinematicState(NamedTuple):
         return cls(np.zeros(n), v, np.zeros(n), np.full(n, speed_m_s), v == 0.0, np.zeros(n),
                    np.zeros(nc), np.zeros(n), np.zeros(nc), np.zeros(nc), np.zeros(nc),
                    np.zeros(nc), np.zeros(nc), np.full(nc, -1.0), np.full(nc, -1.0),
-                   np.zeros(n), np.zeros(2))
+                   np.zeros(n), np.zeros(3))
 
     def copy(self) -> "KinematicState":
         """An independent copy."""
@@ -215,7 +217,7 @@ class KinematicState(NamedTuple):
 
 
 #: Entries of ``KinematicState.step_control``.
-NEXT_STEP, ACCEL_VALID = 0, 1
+NEXT_STEP, ACCEL_VALID, OUT_OF_RANGE = 0, 1, 2
 
 
 class Options(NamedTuple):
@@ -690,6 +692,30 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
     done : int
         Nominal steps completed.
     """
+    ws = new_workspace(model, state, brake_state, options)
+    return run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats, options,
+                     watch_stop, ws)
+
+
+@jit
+def new_workspace(model, state, brake_state, options):
+    """The work arrays of :func:`run_loop` for a train, its state and options.
+
+    One workspace serves every call of :func:`run_loop` with the same ``model``, ``state``
+    (its coupler forces are the workspace's), ``brake_state`` and ``options``; a call leaves
+    nothing in it that changes the next call's results.
+
+    Parameters
+    ----------
+    model : TrainModel
+    state : KinematicState
+    brake_state : BrakeState
+    options : Options
+
+    Returns
+    -------
+    _Workspace
+    """
     n = state.x_m.shape[0]
     nc = max(n - 1, 1)
     mass, axles = model.train.mass_kg, model.train.axles
@@ -702,7 +728,7 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
         res_a[i, 1] = a1
         res_a[i, 2] = a2
     fb = brake_state.force_N
-    ws = _Workspace(
+    return _Workspace(
         np.empty(n), np.empty(n), np.empty(n), np.empty(n, np.bool_), np.empty(n, np.bool_),
         np.empty(n), tol, res_a, np.empty(n), np.empty(n), np.empty(n), np.empty(1),
         _Work(np.empty(n), np.empty(n), np.empty(nc), state.coupler_force_N, np.empty(n),
@@ -713,8 +739,6 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
         np.empty_like(fb), np.empty_like(brake_state.level),
         np.empty_like(brake_state.level_kind), np.empty_like(brake_state.next_event),
         np.empty_like(brake_state.extra), np.empty_like(state.traction_force_N))
-    return _run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats, options,
-                     watch_stop, ws)
 
 
 @jit_step
@@ -731,7 +755,7 @@ def _copy_undo(fb, lvl, kind, nxt, extra, ftr, fb_to, lvl_to, kind_to, nxt_to, e
 
 
 class _Workspace(NamedTuple):
-    """Arrays of :func:`_run_loop`, allocated once per call of :func:`run_steps`."""
+    """Arrays of :func:`run_loop` (:func:`new_workspace`)."""
 
     u: np.ndarray
     xhat: np.ndarray
@@ -756,12 +780,14 @@ class _Workspace(NamedTuple):
 
 
 @jit_step
-def _run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats, options,
-              watch_stop, ws):
-    """The step loop of :func:`run_steps` (same arguments and results, plus its workspace).
+def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats, options,
+             watch_stop, ws):
+    """The step loop of :func:`run_steps` (same arguments and results, plus its workspace
+    ``ws`` from :func:`new_workspace`, which a caller may keep for its next call).
 
     Without reference counting: it allocates nothing, and numba would otherwise count a
-    reference to every array of every bundle it touches or passes on, each step.
+    reference to every array of every bundle it touches or passes on, each step (and, called
+    from Python, to each of the arguments' arrays).
     """
     # bundle fields bound once: the loops below then touch plain arrays only
     train = model.train
@@ -914,6 +940,7 @@ def _run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
                 if out > 0.0:
                     if t_lut_out[j] < 0.0:
                         t_lut_out[j] = tc
+                        control[OUT_OF_RANGE] += 1.0
                     if out > lut_out[j]:
                         lut_out[j] = out
                         t_lut_max[j] = tc
@@ -1039,18 +1066,44 @@ def bind_run_steps(*args):
     callable
         Same arguments and results as :func:`run_steps`.
     """
+    return _bind(run_steps, args)
+
+
+def bind_run_loop(*args):
+    """:func:`run_loop` compiled for the types of ``args``, as :func:`bind_run_steps`.
+
+    The cheapest call per chunk: no workspace to allocate, and no reference counting of the
+    arguments' arrays (about 90 with the workspace; counted, they cost twice as much).
+
+    Parameters
+    ----------
+    *args
+        A valid argument list of :func:`run_loop` (it is not run).
+
+    Returns
+    -------
+    callable
+        Same arguments and results as :func:`run_loop`.
+    """
+    return _bind(run_loop, args)
+
+
+def _bind(fn, args):
+    """``fn`` compiled for the types of ``args`` (see :func:`bind_run_steps`)."""
     if not HAVE_NUMBA:  # pragma: no cover - plain Python has no dispatch to skip
-        return run_steps
+        return fn
     key = _layout_key(args)
+    key = None if key is None else (fn.__name__, key)
     bound = _BOUND.get(key) if key is not None else None
     if bound is None:
-        bound = run_steps.compile(tuple(run_steps.typeof_pyval(a) for a in args))
+        bound = fn.compile(tuple(fn.typeof_pyval(a) for a in args))
         if key is not None:
             _BOUND[key] = bound
     return bound
 
 
-#: :func:`bind_run_steps` by the layout of its arguments (numba types them slowly: ~1 ms).
+#: :func:`bind_run_steps` and :func:`bind_run_loop` by function and the layout of the
+#: arguments (numba types them slowly: ~1 ms).
 _BOUND: dict = {}
 
 

@@ -26,7 +26,7 @@ def test_layout_key_tells_apart_what_numba_types_apart():
 def test_two_trains_of_one_layout_share_the_bound_kernel_and_their_results():
     sc = get_scenario(6)
     first, second = Simulator(sc.consist(), sc.speed_kmh), Simulator(sc.consist(), 60.0)
-    assert first._run_steps is second._run_steps
+    assert first._run_loop is second._run_loop
     for sim in (first, second):
         sim.advance(2.0, Commands(emergency=True))
     fresh = Simulator(sc.consist(), 60.0)
