@@ -33,13 +33,21 @@ try:  # pragma: no cover - exercised implicitly
         """
         return njit(cache=True, nogil=True, _nrt=False)(fn)
 
+    def jit_vector(fn):
+        """:func:`jit_step` with IEEE division (x / 0 gives inf or NaN instead of raising).
+
+        For loops the compiler should vectorise: a zero check before each division keeps it
+        from doing so. Only for divisions whose divisor cannot be zero.
+        """
+        return njit(cache=True, nogil=True, _nrt=False, error_model="numpy")(fn)
+
     HAVE_NUMBA = True
 except ImportError:  # pragma: no cover - fallback keeps the package usable, only slower
     def jit(fn):
         """No-op stand-in for the numba decorator."""
         return fn
 
-    jit_inline = jit_step = jit
+    jit_inline = jit_step = jit_vector = jit
 
     HAVE_NUMBA = False
 

@@ -858,8 +858,7 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
                 track_forces(x, train, model.track, fgrade, rcurve)
             for i in range(n):
                 fx[i] = fext[i] + ftr[i] + fgrade[i]
-                fa_scale[i] = friction.force_scale(kind[i], blocks[i], arrangement[i],
-                                                   mu_disc[i], fb[i])
+            friction.force_scales(kind, blocks, arrangement, mu_disc, fb, fa_scale)
             if hp > 0.0:
                 w_ratio = hs / hp
                 c1 = (1.0 + w_ratio) ** 2 / (1.0 + 2.0 * w_ratio)

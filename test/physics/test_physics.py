@@ -61,6 +61,22 @@ def test_block_mu_derivative_matches_finite_difference():
         assert dmu == pytest.approx(fd, rel=1e-6)
 
 
+def test_train_force_scales_are_each_vehicles_bit_for_bit():
+    # the kernel's pass over the train (vectorised divisions) must give exactly the
+    # per-vehicle Eq. 8-10 force scale, for every brake kind and block arrangement
+    kind = np.array([friction.BRAKE_DISC, friction.BRAKE_NONE] + [friction.BRAKE_BLOCKS] * 9)
+    blocks = np.array([1.0, 1.0] + [8.0, 16.0, 4.0] * 3)
+    arrangement = np.array([0, 0] + [friction.ARR_BG] * 6 + [friction.ARR_BGU] * 3)
+    mu_disc = np.array([0.264] + [0.0] * 10)
+    block_force = np.array([1.7e5, 0.0, 0.0, 1e-3, 3e3, 2.5e4, 1.2e5, 3.3e5, 0.0, 4e4, 2.9e5])
+    out = np.full(kind.size, np.nan)
+    friction.force_scales(kind, blocks, arrangement, mu_disc, block_force, out)
+    each = [friction.force_scale(*args) for args in zip(kind, blocks, arrangement, mu_disc,
+                                                          block_force)]
+    assert out.tolist() == each
+    assert each[1] == 0.0 and each[0] == 0.264 * 1.7e5 and each[5] < 2.5e4  # phi(F) < 1
+
+
 # ----------------------------------------------------------------------------- Eq. 3
 
 
