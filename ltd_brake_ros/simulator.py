@@ -48,6 +48,10 @@ from .physics.kernel import Stats  # noqa: F401 (part of this module's interface
 from .verdicts import TrainLimits, Verdicts, Watch, adhesion_demand_at_rest, train_limits
 
 
+#: The dtype the kernel takes forces in.
+_FLOAT64 = np.dtype(np.float64)
+
+
 class SimulationError(RuntimeError):
     """The integration could not proceed (a Newton iteration did not converge, a force was not
     finite, or a step failed with an arithmetic error)."""
@@ -520,6 +524,8 @@ class Simulator:
         self._initial = (self.n, self.speed_kmh / KMH_PER_MS, self.model.brakes, self.limits)
         self._state = self._initial_state()
         self._workspace: tuple | None = None  # (kinematics, brake state, the kernel's workspace)
+        self._inputs: kernel.Inputs | None = None  # the last chunk's
+        self._offsets_nonzero: np.ndarray | None = None  # centre offsets known to hold no 0
         if compiled.run_loop is None:
             self._bind_kernel()
             compiled.run_loop = self._run_loop
@@ -766,12 +772,19 @@ class Simulator:
         k = st.kinematics
         v = k.v_m_s
         n = v.shape[0]
+        origin, offset = self.track.start_chainage_m, self.model.train.centre_offset_m
+        if origin == 0.0 and offset is self._offsets_nonzero:
+            position = k.x_m - offset  # the same as 0 + x - offset where no offset is 0
+        else:
+            position = origin + k.x_m - offset
+            if offset.all():
+                self._offsets_nonzero = offset
         # the fields set directly: the same object as Snapshot(...) builds, without the frozen
         # dataclass's per-field checks (a snapshot per chunk)
         snap = object.__new__(Snapshot)
         snap.__dict__.update(
             time_s=st.time_s,
-            position_m=self.track.start_chainage_m + k.x_m - self.model.train.centre_offset_m,
+            position_m=position,
             speed_m_s=v.copy(),
             brake_force_N=k.brake_force_N.copy() if self._brakes else np.zeros(n),
             traction_force_N=k.traction_force_N.copy(), block_force_N=st.brakes.force_N.copy(),
@@ -849,7 +862,12 @@ class Simulator:
         nsteps = max(1, math.ceil(duration_s / self.step_s - 1e-9))
         h = duration_s / nsteps
         remaining = nsteps
-        inputs = kernel.Inputs(st.traction_demand, self._external_forces())
+        inputs = self._inputs
+        fext = self.fext_N
+        if (inputs is None or inputs.external_force_N is not fext or fext.shape != (self.n,)
+                or fext.dtype is not _FLOAT64 or inputs.traction_demand != st.traction_demand):
+            # new inputs (the same array, changed in place, needs no new bundle)
+            inputs = self._inputs = kernel.Inputs(st.traction_demand, self._external_forces())
         if self.model is not self._bound_model:
             self._bind_kernel()  # a model put in by hand may have other array types
         ws = self._workspace
