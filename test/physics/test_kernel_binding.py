@@ -34,3 +34,26 @@ def test_two_trains_of_one_layout_share_the_bound_kernel_and_their_results():
     fresh._bind_kernel()  # typed anew by numba
     fresh.advance(2.0, Commands(emergency=True))
     np.testing.assert_array_equal(fresh.snapshot().speed_m_s, second.snapshot().speed_m_s)
+
+
+def test_the_whole_kernel_and_the_loop_with_a_kept_workspace_agree_bit_for_bit():
+    # advance keeps the step loop's work arrays from chunk to chunk; run_steps allocates them
+    # on each call: nothing left in them may change a result
+    sc = get_scenario(6)
+    kept, whole = Simulator(sc.consist(), sc.speed_kmh), Simulator(sc.consist(), sc.speed_kmh)
+    for sim in (kept, whole):
+        sim.advance(0.5, Commands(emergency=True))
+    st = whole._state
+    for _ in range(4):
+        kept.advance(0.5)
+        code, t, hp, done = whole._run_steps(
+            50, 0.5 / 50, st.time_s, st.last_step_s, whole.model,
+            kernel.Inputs(st.traction_demand, whole.fext_N), st.kinematics, st.brakes, st.events,
+            st.stats[0], whole._options, True)
+        st.time_s, st.last_step_s = t, hp
+        assert (code, done) == (kernel.OK, 50)
+    assert st.time_s == kept.time_s and whole.steps == kept.steps > 200
+    for name in kernel.KinematicState._fields:
+        np.testing.assert_array_equal(getattr(st.kinematics, name),
+                                      getattr(kept._state.kinematics, name), err_msg=name)
+    np.testing.assert_array_equal(st.brakes.force_N, kept._state.brakes.force_N)
