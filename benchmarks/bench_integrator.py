@@ -520,10 +520,10 @@ def main(argv=None) -> int:
               f"{g.end_time_s:.2f} s, {g.stopping_distance_m:.3f} m.")
     print(end_to_end_line(e2e))
     print(f"* Simulator.advance per call (one 10 ms step, scenario 6): {over['advance_us']:.1f} µs "
-          f"against {over['kernel_us']:.1f} µs for the bound kernel alone "
+          f"against {over['kernel_us']:.1f} µs for the bound step loop alone "
           f"({over['advance_us'] - over['kernel_us']:.1f} µs of commands, snapshot and events); "
-          f"the same kernel call through numba's dispatcher, which types every bundle on every "
-          f"call, {over['dispatch_us']:.1f} µs.")
+          f"the whole kernel through numba's dispatcher, which types every bundle and allocates "
+          f"its work arrays on every call, {over['dispatch_us']:.1f} µs.")
     print(f"* Start-up (fresh process, warm compilation cache, scenario 6): import to first "
           f"1 s chunk {start_best:.2f} s (slowest of 3: {start_worst:.2f} s); whole process "
           f"{process_s:.2f} s.")
