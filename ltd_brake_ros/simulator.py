@@ -28,7 +28,6 @@ retarding forces, positive.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 import threading
 from dataclasses import dataclass, field
@@ -525,7 +524,6 @@ class Simulator:
         self._state = self._initial_state()
         self._workspace: tuple | None = None  # (kinematics, brake state, the kernel's workspace)
         self._inputs: kernel.Inputs | None = None  # the last chunk's
-        self._offsets_nonzero: np.ndarray | None = None  # centre offsets known to hold no 0
         if compiled.run_loop is None:
             self._bind_kernel()
             compiled.run_loop = self._run_loop
@@ -772,19 +770,12 @@ class Simulator:
         k = st.kinematics
         v = k.v_m_s
         n = v.shape[0]
-        origin, offset = self.track.start_chainage_m, self.model.train.centre_offset_m
-        if origin == 0.0 and offset is self._offsets_nonzero:
-            position = k.x_m - offset  # the same as 0 + x - offset where no offset is 0
-        else:
-            position = origin + k.x_m - offset
-            if offset.all():
-                self._offsets_nonzero = offset
         # the fields set directly: the same object as Snapshot(...) builds, without the frozen
         # dataclass's per-field checks (a snapshot per chunk)
         snap = object.__new__(Snapshot)
         snap.__dict__.update(
             time_s=st.time_s,
-            position_m=position,
+            position_m=self.track.start_chainage_m + k.x_m - self.model.train.centre_offset_m,
             speed_m_s=v.copy(),
             brake_force_N=k.brake_force_N.copy() if self._brakes else np.zeros(n),
             traction_force_N=k.traction_force_N.copy(), block_force_N=st.brakes.force_N.copy(),
@@ -938,12 +929,6 @@ class Simulator:
         self._workspace = (st.kinematics, st.brakes, kernel.new_workspace(
             self.model, st.kinematics, st.brakes, self._options))
         return self._workspace
-
-    @functools.cached_property
-    def _run_steps(self):
-        """The whole kernel, :func:`~ltd_brake_ros.physics.kernel.run_steps`, bound for this
-        train's bundles (allocating its work arrays on each call)."""
-        return kernel.bind_run_steps(*self._kernel_arguments())
 
     def _external_forces(self) -> np.ndarray:
         """:attr:`fext_N` as the kernel takes it: n contiguous floats [N].

@@ -46,7 +46,7 @@ def test_the_whole_kernel_and_the_loop_with_a_kept_workspace_agree_bit_for_bit()
     st = whole._state
     for _ in range(4):
         kept.advance(0.5)
-        code, t, hp, done = whole._run_steps(
+        code, t, hp, done = kernel.run_steps(
             50, 0.5 / 50, st.time_s, st.last_step_s, whole.model,
             kernel.Inputs(st.traction_demand, whole.fext_N), st.kinematics, st.brakes, st.events,
             st.stats[0], whole._options, True)
