@@ -279,9 +279,10 @@ def parse_yaml(raw: bytes, source: str | os.PathLike) -> Any:
 def load_once(path: str | os.PathLike, build, *args) -> Any:
     """``build(document, source, *args)`` of a YAML input file, built once per contents.
 
-    The file is read on every call and the value built again whenever its bytes (or
-    ``args``) differ from those of a value already built, so an edited file is never served
-    from before the edit (a file's modification time may not change between two writes).
+    The file's bytes come from :func:`read_input` (read again whenever its device, inode,
+    size, modification or change time differ) and the value is built again whenever those
+    bytes (or ``args``) differ from those of a value already built, so an edited file is
+    never served from before the edit.
 
     Parameters
     ----------
