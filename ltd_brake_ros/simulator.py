@@ -458,7 +458,8 @@ class Simulator:
     max_newton_iter : int, optional
         Newton iterations allowed per step before the step counts as failed.
     newton_rtol : float, optional
-        Residual tolerance, relative to each vehicle's weight.
+        Residual tolerance, relative to each vehicle's weight (default
+        :data:`~ltd_brake_ros.physics.kernel.DEFAULT_NEWTON_RTOL`).
     standstill_m_s : float, optional
         The train counts as stopped once every vehicle is slower than this [m/s].
     stick_band_m_s : float, optional
@@ -484,7 +485,7 @@ class Simulator:
                  lut: CouplerLUT | None = None, track: Track | None = None, *,
                  step_s: float = 0.01,
                  resistance: bool = True, brakes: bool = True, max_newton_iter: int = 100,
-                 newton_rtol: float = 1e-9, standstill_m_s: float = STANDSTILL_M_S,
+                 newton_rtol: float = kernel.DEFAULT_NEWTON_RTOL, standstill_m_s: float = STANDSTILL_M_S,
                  stick_band_m_s: float = 1e-5,
                  tolerance_m_s: float | None = kernel.DEFAULT_TOLERANCE_M_S):
         if lut is None:
