@@ -36,6 +36,10 @@ PARAMETER_ARGUMENTS = {
                 "Simulated time advanced and published per chunk [s]"),
     "real_time_factor": ("real_time_factor", "float",
                          "Simulated seconds per wall second; 0 = as fast as possible"),
+    "max_catch_up_s": ("max_catch_up_s", "float",
+                       "Wall time the plant may fall behind its schedule and catch up by "
+                       "advancing the chunks already due [s]; 0 = never (long trains at "
+                       "real_time_factor 1)"),
     "publish_every": ("publish_every", "int",
                       "Publish (and record) the state after every N-th chunk, for faster runs"),
     "lock_step": ("lockstep", "bool",

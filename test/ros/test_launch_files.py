@@ -238,11 +238,12 @@ def test_sim_launch_starts_the_plant_with_the_installed_file_and_typed_overrides
     assert sim.CHOICES["clock"] == ["", *CLOCK_MODES]
 
     node, = launch("sim.launch.py", namespace="/t7", real_time_factor="0", lock_step="true",
-                   consist="6", record_dir="runs/x", initial_speed_kmh="80", publish_every="5")
+                   consist="6", record_dir="runs/x", initial_speed_kmh="80", publish_every="5",
+                   max_catch_up_s="0.5")
     assert node.kwargs["namespace"] == "/t7"
     assert _overrides(node) == {"real_time_factor": 0.0, "lockstep": True, "consist": "6",
                                 "record_dir": "runs/x", "initial_speed_kmh": 80.0,
-                                "publish_every": 5}
+                                "publish_every": 5, "max_catch_up_s": 0.5}
     assert all(type(v).__name__ == types_of[k] for k, v in _overrides(node).items())
 
     with pytest.raises(ValueError, match="launch argument real_time_factor: 'fast' is not a "
