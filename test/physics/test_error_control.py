@@ -191,3 +191,13 @@ def test_step_growth_is_bounded_and_waits_after_a_rejection():
     assert _step_factor(0.95, 2.0, False, False) < 1.0         # close to the limit: shrinks
     assert _step_factor(0.1, 2.0, False, True) == 1.0           # right after a rejection
     assert _step_factor(0.99, 2.0, False, True) < 1.0
+
+
+def test_a_whole_step_below_the_growth_threshold_would_grow():
+    # the step loop keeps a whole nominal step without evaluating the controller when the
+    # estimate is below GROWS_SURELY: the controller must grow the step there, at either order
+    from ltd_brake_ros.physics.kernel import GROWS_SURELY, _step_factor
+
+    for order in (1.0, 2.0):
+        for ratio in np.linspace(0.0, GROWS_SURELY, 701):
+            assert _step_factor(ratio, order, False, False) >= 1.0, (order, ratio)
