@@ -41,7 +41,10 @@ def test_serial_table_holds_every_run_once_with_physical_kpis(reference):
         assert 0.0 < r["max_adhesion_demand"] < 1.0
         assert r["adhesion_ok"] == (r["max_adhesion_demand"] <= c.adhesion_limit)
         assert r["buff_ok"] == (-r["peak_buff_kN"] <= 2000.0)
-        assert r["newton_iterations"] >= r["steps"] > 0
+        # about one Newton iteration a step while braking; a step whose predictor already
+        # meets the residual tolerance (steady motion, vehicles at rest) takes none
+        assert r["steps"] > 0
+        assert 0.5 * r["steps"] <= r["newton_iterations"] <= 5 * r["steps"]
 
 
 def test_process_pool_gives_the_identical_table(reference, tmp_path):
