@@ -485,8 +485,8 @@ class Simulator:
                  lut: CouplerLUT | None = None, track: Track | None = None, *,
                  step_s: float = 0.01,
                  resistance: bool = True, brakes: bool = True, max_newton_iter: int = 100,
-                 newton_rtol: float = kernel.DEFAULT_NEWTON_RTOL, standstill_m_s: float = STANDSTILL_M_S,
-                 stick_band_m_s: float = 1e-5,
+                 newton_rtol: float = kernel.DEFAULT_NEWTON_RTOL,
+                 standstill_m_s: float = STANDSTILL_M_S, stick_band_m_s: float = 1e-5,
                  tolerance_m_s: float | None = kernel.DEFAULT_TOLERANCE_M_S):
         if lut is None:
             from .inputs import load_coupler_lut

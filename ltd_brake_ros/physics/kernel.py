@@ -571,7 +571,7 @@ MIN_STEP_FRACTION = 2.0 ** -12
 SAFETY, MAX_GROWTH, MAX_SHRINK = 0.9, 2.0, 0.2
 #: Step-size factor after a Newton iteration that did not converge.
 NEWTON_SHRINK = 0.25
-#: An error ratio below which :func:`_step_factor` surely grows the step (it grows for ratios
+#: An error ratio below which :func:`_step_factor` surely grows the step (:func:`_next_step`) (it grows for ratios
 #: up to SAFETY ** 3 = 0.729 at order 2 and 0.81 at order 1).
 GROWS_SURELY = 0.7
 
@@ -612,6 +612,19 @@ def _step_factor(ratio, order, rejected, after_rejection):
     if after_rejection:
         grow = min(grow, 1.0)
     return grow
+
+
+@jit
+def _next_step(hs, h_max, ratio, order, after_rejection):
+    """The step proposed after an accepted one of ``hs`` seconds: ``hs`` times
+    :func:`_step_factor`, at most ``h_max`` [s].
+
+    A step already at ``h_max`` whose estimate is below :data:`GROWS_SURELY` stays there
+    without the controller's power (the same result: the controller would grow it).
+    """
+    if hs >= h_max and ratio < GROWS_SURELY and not after_rejection:
+        return h_max
+    return min(hs * _step_factor(ratio, order, False, after_rejection), h_max)
 
 
 @jit_step
@@ -748,23 +761,13 @@ def new_workspace(model, state, brake_state, options):
 
 @jit_step
 def _copy_undo(fb, lvl, kind, nxt, extra, ftr, fb_to, lvl_to, kind_to, nxt_to, extra_to, ftr_to):
-    """Copy what a rejected step must undo: the brake state's arrays and the applied traction.
-
-    One plain loop per array (the compiler turns each into a block copy; a nested loop over
-    ``extra``'s columns inside them would stop it).
-    """
-    n = fb.shape[0]
-    for i in range(n):
+    """Copy what a rejected step must undo: the brake state's arrays and the applied traction."""
+    for i in range(fb.shape[0]):
         fb_to[i] = fb[i]
-    for i in range(n):
         lvl_to[i] = lvl[i]
-    for i in range(n):
         kind_to[i] = kind[i]
-    for i in range(n):
         nxt_to[i] = nxt[i]
-    for i in range(n):
         ftr_to[i] = ftr[i]
-    for i in range(n):
         for j in range(extra.shape[1]):
             extra_to[i, j] = extra[i, j]
 
@@ -917,12 +920,7 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
                 continue
             # ---- accept
             if adaptive:
-                if hs == h and ratio < GROWS_SURELY and not retried:
-                    # the smooth rule would grow a whole nominal step: it stays one (the
-                    # same result as the rule, without its power)
-                    control[NEXT_STEP] = h
-                else:
-                    control[NEXT_STEP] = min(hs * _step_factor(ratio, order, False, retried), h)
+                control[NEXT_STEP] = _next_step(hs, h, ratio, order, retried)
                 retried = False
             stats.steps += 1
             if stats.smallest_step_s == 0.0 or hs < stats.smallest_step_s:

@@ -193,11 +193,17 @@ def test_step_growth_is_bounded_and_waits_after_a_rejection():
     assert _step_factor(0.99, 2.0, False, True) < 1.0
 
 
-def test_a_whole_step_below_the_growth_threshold_would_grow():
-    # the step loop keeps a whole nominal step without evaluating the controller when the
-    # estimate is below GROWS_SURELY: the controller must grow the step there, at either order
-    from ltd_brake_ros.physics.kernel import GROWS_SURELY, _step_factor
+def test_next_step_is_the_controller_capped_at_the_nominal_step():
+    # _next_step skips the controller's power for a whole step with a small estimate: the
+    # result must be the rule's, whatever the step, estimate, order or rejection before
+    from ltd_brake_ros.physics.kernel import GROWS_SURELY, _next_step, _step_factor
 
+    h = 0.01
     for order in (1.0, 2.0):
-        for ratio in np.linspace(0.0, GROWS_SURELY, 701):
-            assert _step_factor(ratio, order, False, False) >= 1.0, (order, ratio)
+        for retried in (False, True):
+            for hs in (h, 0.6 * h, 0.2 * h):
+                for ratio in np.linspace(0.0, 1.0, 401):
+                    rule = min(hs * _step_factor(ratio, order, False, retried), h)
+                    assert _next_step(hs, h, ratio, order, retried) == rule, \
+                        (order, retried, hs, ratio)
+    assert _step_factor(GROWS_SURELY, 2.0, False, False) > 1.0
