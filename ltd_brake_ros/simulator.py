@@ -451,6 +451,12 @@ class Simulator:
         error estimate exceeds it is taken in shorter sub-steps (default
         :data:`~ltd_brake_ros.physics.kernel.DEFAULT_TOLERANCE_M_S`); 0 or None takes every
         nominal step whole (fixed steps).
+    local_steps : bool, optional
+        Under error control, let long trains (at least
+        :data:`~ltd_brake_ros.physics.kernel.LOCAL_MIN_VEHICLES` vehicles) take short
+        sub-steps only in the groups of vehicles whose error estimate needs them, the rest of
+        the train keeping the longer step (local time stepping; default True). False retries
+        the whole train shorter instead.
     resistance : bool, optional
         Apply running resistance, Eq. 2.
     brakes : bool, optional
@@ -487,7 +493,8 @@ class Simulator:
                  resistance: bool = True, brakes: bool = True, max_newton_iter: int = 100,
                  newton_rtol: float = kernel.DEFAULT_NEWTON_RTOL,
                  standstill_m_s: float = STANDSTILL_M_S, stick_band_m_s: float = 1e-5,
-                 tolerance_m_s: float | None = kernel.DEFAULT_TOLERANCE_M_S):
+                 tolerance_m_s: float | None = kernel.DEFAULT_TOLERANCE_M_S,
+                 local_steps: bool = True):
         if lut is None:
             from .inputs import load_coupler_lut
 
@@ -506,6 +513,7 @@ class Simulator:
         self.speed_kmh = float(speed_kmh)
         self.step_s = float(step_s)
         self.tolerance_m_s = float(tolerance_m_s)
+        self.local_steps = bool(local_steps)
         self.max_newton_iter = int(max_newton_iter)
         self.newton_rtol = float(newton_rtol)
         self.standstill_m_s = float(standstill_m_s)
@@ -517,7 +525,7 @@ class Simulator:
         self._brake_model = brakes_module.model_of(params.pneumatic)
         self._options = kernel.Options(self.max_newton_iter, self.newton_rtol,
                                        self.standstill_m_s, self.stick_band_m_s,
-                                       self.tolerance_m_s)
+                                       self.tolerance_m_s, self.local_steps)
         self.fext_N = np.zeros(self.n)
         self.limits: TrainLimits = compiled.limits
         # what the state at time 0 is built from, anew at each reset (as cheap as a copy)
