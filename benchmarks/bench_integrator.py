@@ -504,7 +504,7 @@ def row(case: Case, t: dict, ref: dict | None) -> str:
     """One Markdown table row."""
     st = t["stats"]
     rtf = t["sim_s"] / t["wall_s"]
-    its = st.newton_iterations / max(st.steps, 1)
+    its = st.newton_iterations / max(st.steps + st.local_steps, 1)  # per step, local ones too
     fails = "0" if t["failed_at"] is None else f"1 (t = {t['failed_at']:.2f} s)"
     lut = "0" if not t["lut_out"] else f"{t['lut_out']} (≤ {t['lut_out_mm']:.1f} mm)"
     cells = [case.train, case.brakes, case.steps, f"{t['sim_s']:.0f}", f"{t['wall_s']:.3f}",

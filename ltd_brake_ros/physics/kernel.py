@@ -7,7 +7,7 @@ tolerance of 0 every nominal step is one step (fixed steps).
 
 In a long train the estimate seldom fails for more than a few vehicles at once: those whose
 couplers switch between Eq. 3's curves or reach an end stop in the step (braked from the head,
-1 000 wagons: a median of 19 of 1 001 vehicles for a 10 ms step). Local time stepping
+1 000 wagons: about 20 of 1 001 vehicles for a 10 ms step). Local time stepping
 (:func:`_refine_all`) then keeps the whole train's step for the others and sub-steps only
 windows around those vehicles, their neighbours outside following the train's step; the step
 stands when every window holds the tolerance and passes its neighbours the momentum the train's
