@@ -672,6 +672,16 @@ def _next_step(hs, h_max, ratio, order, after_rejection):
     return min(hs * _step_factor(ratio, order, False, after_rejection), h_max)
 
 
+@jit_inline
+def _milne(hs, hp):
+    """Milne's factor (1+w)/(2+3w) (1/2 after a restart, hp = 0) and the predictor's
+    coefficient (hs/hp)^2 (0: the line) of :func:`_error_ratio`."""
+    if hp > 0.0:
+        w = hs / hp
+        return (1.0 + w) / (2.0 + 3.0 * w), hs * hs / (hp * hp)
+    return 0.5, 0.0
+
+
 @jit_step
 def _error_ratio(u, v, vp, a, stuck, stuck0, hs, hp, tolerance):
     """Largest local error estimate of the new speeds over the tolerance (Milne's device).
@@ -686,13 +696,7 @@ def _error_ratio(u, v, vp, a, stuck, stuck0, hs, hp, tolerance):
     Eq. 3's band is not: its switch between the loading and unloading curves changes the
     forces by as much as an end stop, and short steps resolve it.
     """
-    if hp > 0.0:
-        w = hs / hp
-        k = (1.0 + w) / (2.0 + 3.0 * w)
-        cq = hs * hs / (hp * hp)
-    else:
-        k = 0.5
-        cq = 0.0
+    k, cq = _milne(hs, hp)
     worst = 0.0
     for i in range(u.shape[0]):  # branch-free: the compiler vectorises it
         q = v[i] + a[i] * hs + cq * (vp[i] - v[i] + a[i] * hp)  # cq = 0: the line
@@ -763,13 +767,7 @@ PRESCRIBED_MASS_KG = 1e30
 def _vehicle_errors(u, v, vp, a, stuck, stuck0, hs, hp, tolerance, out):
     """Each vehicle's error estimate over the tolerance, the terms of :func:`_error_ratio`
     (into ``out``)."""
-    if hp > 0.0:
-        w = hs / hp
-        k = (1.0 + w) / (2.0 + 3.0 * w)
-        cq = hs * hs / (hp * hp)
-    else:
-        k = 0.5
-        cq = 0.0
+    k, cq = _milne(hs, hp)
     for i in range(u.shape[0]):
         q = v[i] + a[i] * hs + cq * (vp[i] - v[i] + a[i] * hp)
         e = abs(u[i] - q)
@@ -863,6 +861,20 @@ def _hermite(x0, v0, x1, v1, h, s):
 
 
 @jit_step
+def _copy_records(a, b, draft, t_draft, buff, t_buff, beyond, t_out, t_beyond, draft_to,
+                  t_draft_to, buff_to, t_buff_to, beyond_to, t_out_to, t_beyond_to):
+    """Copy couplers a to b - 1's peaks and excursions (:func:`_record_coupler`'s arrays)."""
+    for g in range(a, b):
+        draft_to[g] = draft[g]
+        t_draft_to[g] = t_draft[g]
+        buff_to[g] = buff[g]
+        t_buff_to[g] = t_buff[g]
+        beyond_to[g] = beyond[g]
+        t_out_to[g] = t_out[g]
+        t_beyond_to[g] = t_beyond[g]
+
+
+@jit_step
 def _refine(lo, hi, h, tc, hs, hp, first_factor, model, state, ws, s, u, options, stats):
     """Sub-step vehicles ``lo`` to ``hi`` alone over the step [tc, tc + hs] the whole train
     has just tried (speeds ``u``, positions ``s.xhat + s.bh * u``), into ``ws.local``.
@@ -916,15 +928,10 @@ def _refine(lo, hi, h, tc, hs, hp, first_factor, model, state, ws, s, u, options
         wmeff[k] = train.meff_kg[g]
         wtol[k] = ws.tol[g]
         wfx[k] = ws.fx[g]
-    for k in range(m - 1):
-        g = a + k
-        loc.peak_draft[g] = state.peak_draft_N[g]
-        loc.t_draft[g] = state.peak_draft_time_s[g]
-        loc.peak_buff[g] = state.peak_buff_N[g]
-        loc.t_buff[g] = state.peak_buff_time_s[g]
-        loc.beyond[g] = state.beyond_range_m[g]
-        loc.t_out[g] = state.out_of_range_time_s[g]
-        loc.t_beyond[g] = state.beyond_range_time_s[g]
+    _copy_records(a, b, state.peak_draft_N, state.peak_draft_time_s, state.peak_buff_N,
+                  state.peak_buff_time_s, state.beyond_range_m, state.out_of_range_time_s,
+                  state.beyond_range_time_s, loc.peak_draft, loc.t_draft, loc.peak_buff,
+                  loc.t_buff, loc.beyond, loc.t_out, loc.t_beyond)
     if front:
         wmeff[0] = PRESCRIBED_MASS_KG
         wtol[0] = math.inf
@@ -1060,13 +1067,10 @@ def _commit(lo, hi, state, ws, u, stuck1):
         stuck1[g] = loc.stuck[g]
     for g in range(a, b):
         ws.work.fc[g] = loc.work.fc[g]
-        state.peak_draft_N[g] = loc.peak_draft[g]
-        state.peak_draft_time_s[g] = loc.t_draft[g]
-        state.peak_buff_N[g] = loc.peak_buff[g]
-        state.peak_buff_time_s[g] = loc.t_buff[g]
-        state.beyond_range_m[g] = loc.beyond[g]
-        state.out_of_range_time_s[g] = loc.t_out[g]
-        state.beyond_range_time_s[g] = loc.t_beyond[g]
+    _copy_records(a, b, loc.peak_draft, loc.t_draft, loc.peak_buff, loc.t_buff, loc.beyond,
+                  loc.t_out, loc.t_beyond, state.peak_draft_N, state.peak_draft_time_s,
+                  state.peak_buff_N, state.peak_buff_time_s, state.beyond_range_m,
+                  state.out_of_range_time_s, state.beyond_range_time_s)
 
 
 @jit_step

@@ -86,12 +86,15 @@ def test_grouping_of_nominal_steps_does_not_change_the_result():
     one.advance(4.0)
     for _ in range(200):
         many.advance(0.02)
+    # (and through local time stepping: windows sub-stepped within these nominal steps)
     assert one.stats == many.stats and one.stats.rejected_steps > 0
+    assert one.stats.refined_steps > 0 and one.stats.local_steps > 0
     a, b = one.snapshot(), many.snapshot()
     assert a.time_s == b.time_s
     for name in ("position_m", "speed_m_s", "block_force_N", "coupler_force_N"):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
     assert np.array_equal(one.peak_buff_N, many.peak_buff_N)
+    assert np.array_equal(one.peak_draft_N, many.peak_draft_N)
 
 
 def test_zero_tolerance_takes_every_nominal_step_whole():

@@ -80,23 +80,6 @@ def test_local_steps_are_as_accurate_as_whole_train_steps(stops):
     assert local.stop_time_s == pytest.approx(fine.stop_time_s, abs=0.02)
 
 
-def test_the_same_nominal_steps_give_the_same_result_however_grouped():
-    # windows, their sub-steps and the next step's size carry over between calls exactly
-    one = Simulator(long_train(120), 100.0)
-    many = Simulator(long_train(120), 100.0)
-    one.advance(30.0, Commands(emergency=True))
-    many.advance(30.0, Commands(emergency=True))
-    one.advance(5.0)
-    for _ in range(250):
-        many.advance(0.02)
-    assert one.stats == many.stats and one.stats.refined_steps > 0
-    a, b = one.snapshot(), many.snapshot()
-    for name in ("position_m", "speed_m_s", "block_force_N", "coupler_force_N"):
-        assert np.array_equal(getattr(a, name), getattr(b, name)), name
-    assert np.array_equal(one.peak_draft_N, many.peak_draft_N)
-    assert np.array_equal(one.peak_buff_N, many.peak_buff_N)
-
-
 def test_short_trains_step_whole():
     # the paper's trains: a window would be a large part of the train (and their results stay
     # those of the validated runs, bit for bit)
