@@ -616,8 +616,8 @@ MIN_STEP_FRACTION = 2.0 ** -12
 SAFETY, MAX_GROWTH, MAX_SHRINK = 0.9, 2.0, 0.2
 #: Step-size factor after a Newton iteration that did not converge.
 NEWTON_SHRINK = 0.25
-#: An error ratio below which :func:`_step_factor` surely grows the step (:func:`_next_step`) (it grows for ratios
-#: up to SAFETY ** 3 = 0.729 at order 2 and 0.81 at order 1).
+#: An error ratio below which :func:`_step_factor` surely grows the step (:func:`_next_step`;
+#: it grows for ratios up to SAFETY ** 3 = 0.729 at order 2 and 0.81 at order 1).
 GROWS_SURELY = 0.7
 
 
@@ -884,10 +884,11 @@ def _refine(lo, hi, h, tc, hs, hp, first_factor, model, state, ws, s, u, options
     forces, the brake's force scales and the external forces are those of the step, held.
     Its sub-steps run the step's error control on the window's vehicles (first one
     ``first_factor`` of the step). Peaks and excursions of its couplers go to the window's
-    copies. Returns True when every sub-step held the tolerance and the momentum the end
-    couplers passed to the neighbours outside differs from the whole step's by at most
-    :data:`LOCAL_CONSISTENCY` of the tolerance (trapezoidal impulses); else the whole train
-    must step shorter.
+    copies. Returns :data:`WINDOW_OK` when every sub-step held the tolerance and the momentum
+    the end couplers passed to the neighbours outside differs from the whole step's by at
+    most :data:`LOCAL_CONSISTENCY` of the tolerance (trapezoidal impulses);
+    :data:`WINDOW_FAILED` when a sub-step could not be taken; else the bits
+    :data:`WINDOW_FRONT` / :data:`WINDOW_REAR` of the ends that disagree.
     """
     train, fr, cp = model.train, model.friction, model.couplers
     x, v, xp, vp, acc, stuck = (state.x_m, state.v_m_s, state.x_prev_m, state.v_prev_m_s,
@@ -901,7 +902,8 @@ def _refine(lo, hi, h, tc, hs, hp, first_factor, model, state, ws, s, u, options
     rear = hi < n - 1
     i0 = lo - a
     i1 = hi - a + 1  # inner vehicles: [i0, i1) of the window's arrays
-    wx, wv, wxp, wvp, wacc = loc.x[a:b + 1], loc.v[a:b + 1], loc.xp[a:b + 1], loc.vp[a:b + 1], loc.acc[a:b + 1]
+    wx, wv, wxp, wvp = loc.x[a:b + 1], loc.v[a:b + 1], loc.xp[a:b + 1], loc.vp[a:b + 1]
+    wacc = loc.acc[a:b + 1]
     wu, wxhat, wvhat = loc.u[a:b + 1], loc.xhat[a:b + 1], loc.vhat[a:b + 1]
     wmeff, wtol, wfx = loc.meff[a:b + 1], loc.tol[a:b + 1], loc.fx[a:b + 1]
     wst, wst1 = loc.stuck[a:b + 1], loc.stuck_new[a:b + 1]
@@ -1147,11 +1149,12 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
     With ``options.tolerance_m_s`` > 0 each nominal step is taken whole when the local error
     estimate (:func:`_error_ratio`) holds the tolerance, else in shorter sub-steps: a step
     whose estimate exceeds it (or whose Newton iteration does not converge) is rejected and
-    retried shorter, and after each accepted step the next may grow by up to
-    :data:`MAX_GROWTH`, never beyond the nominal step (:func:`_step_factor`). Sub-steps end exactly on the nominal
-    step's end and the proposal carries over in ``state.step_control``: the same nominal
-    steps give the same result however they are grouped into calls. With tolerance 0 every
-    nominal step is one step.
+    retried shorter (in a long train with ``options.local_steps``, only the vehicles that
+    need it, :func:`_refine_all`), and after each accepted step the next may grow by up to
+    :data:`MAX_GROWTH`, never beyond the nominal step (:func:`_step_factor`). Sub-steps end
+    exactly on the nominal step's end and the proposal carries over in
+    ``state.step_control``: the same nominal steps give the same result however they are
+    grouped into calls. With tolerance 0 every nominal step is one step.
 
     Parameters
     ----------

@@ -17,9 +17,6 @@ from ltd_brake_ros.inputs import consist_from_mapping, get_scenario
 from ltd_brake_ros.physics import kernel
 from ltd_brake_ros.simulator import Commands, Simulator
 
-if not kernel.HAVE_NUMBA:  # pragma: no cover
-    pytest.skip("the kernel's helpers are compiled functions", allow_module_level=True)
-
 
 def long_train(wagons):
     return consist_from_mapping({"name": "long", "vehicles": [
