@@ -190,6 +190,12 @@ class KinematicState(NamedTuple):
     accel_m_s2 : ndarray
         Acceleration of each vehicle at the end of the last step, the step's own derivative
         [m/s^2] (the error estimate's predictor uses it).
+    applied_work_J, applied_distance_m : ndarray
+        Work of each vehicle's brake at the rails [J] (less what decelerated its rotating
+        masses) and the distance it ran [m] while its brake was fully
+        applied (retarding-force scale at least :data:`FULL_APPLICATION` of its full value) and
+        it ran at :data:`MEAN_ADHESION_MIN_SPEED_M_S` or faster: their ratio over m g is the
+        mean utilised adhesion of a braking calculation (:mod:`ltd_brake_ros.verdicts`).
     step_control : ndarray, shape (3,)
         Entry :data:`NEXT_STEP`: the step the error control proposes next [s] (0: the nominal
         step); entry :data:`ACCEL_VALID`: 1 once ``accel_m_s2`` holds a step's derivative;
@@ -214,6 +220,8 @@ class KinematicState(NamedTuple):
     beyond_range_time_s: np.ndarray
     accel_m_s2: np.ndarray
     step_control: np.ndarray
+    applied_work_J: np.ndarray
+    applied_distance_m: np.ndarray
 
     @classmethod
     def initial(cls, n: int, speed_m_s: float) -> "KinematicState":
@@ -223,7 +231,7 @@ class KinematicState(NamedTuple):
         return cls(np.zeros(n), v, np.zeros(n), np.full(n, speed_m_s), v == 0.0, np.zeros(n),
                    np.zeros(nc), np.zeros(n), np.zeros(nc), np.zeros(nc), np.zeros(nc),
                    np.zeros(nc), np.zeros(nc), np.full(nc, -1.0), np.full(nc, -1.0),
-                   np.zeros(n), np.zeros(3))
+                   np.zeros(n), np.zeros(3), np.zeros(n), np.zeros(n))
 
     def copy(self) -> "KinematicState":
         """An independent copy."""
@@ -232,6 +240,12 @@ class KinematicState(NamedTuple):
 
 #: Entries of ``KinematicState.step_control``.
 NEXT_STEP, ACCEL_VALID, OUT_OF_RANGE = 0, 1, 2
+#: A brake counts as fully applied from this fraction of its full retarding-force scale on
+#: (the braked part of a stop in a mean-value brake calculation, EN 14531-1) [-].
+FULL_APPLICATION = 0.95
+#: The braked part of a stop ends below this speed, as braking calculations count it: 5 km/h
+#: [m/s].
+MEAN_ADHESION_MIN_SPEED_M_S = 5.0 / 3.6
 
 
 class Options(NamedTuple):
@@ -915,7 +929,8 @@ def _refine(lo, hi, h, tc, hs, hp, first_factor, model, state, ws, s, u, options
                        _Work(tr.g[a:b + 1], tr.diag[a:b + 1], tr.cj[a:b], tr.fc[a:b],
                              tr.fair[a:b + 1], tr.segment[a:b]))
     frw = friction.FrictionArrays(fr.kind[a:b + 1], fr.blocks[a:b + 1], fr.arrangement[a:b + 1],
-                                  fr.mu_disc[a:b + 1], fr.force_max_N[a:b + 1])
+                                  fr.mu_disc[a:b + 1], fr.force_max_N[a:b + 1],
+                                  fr.full_scale_N[a:b + 1])
     step = _Step(wxhat, wvhat, loc.bh, wfx, wmeff, wtol, s.res_a[a:b + 1], s.fa_scale[a:b + 1],
                  s.rcurve[a:b + 1], s.resist, s.v_stick)
     wfc = work.fc
@@ -1360,6 +1375,9 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
     fgrade, rcurve, bh_step = ws.fgrade, ws.rcurve, ws.bh_step
     w, scratch = ws.work, ws.scratch
     fair = w.fair
+    full_scale = fr_arrays.full_scale_N
+    meff, mass = train.meff_kg, train.mass_kg
+    applied_work, applied_dist = state.applied_work_J, state.applied_distance_m
     xlo = cp.valid_lo_m
     xhi = cp.valid_hi_m
     # what a rejected step undoes: the brake model's state and the applied traction
@@ -1468,6 +1486,13 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
                 x[i] = xhat[i] + bh * u[i]
                 v[i] = u[i]
                 fbrake[i] = fair[i]
+                if (u[i] >= MEAN_ADHESION_MIN_SPEED_M_S
+                        and fa_scale[i] >= FULL_APPLICATION * full_scale[i] > 0.0):
+                    # the rails take the brake force less what decelerates the rotating
+                    # masses, (rho - 1) M a (EN 14531-1's mean required adhesion)
+                    dx = x[i] - xp[i]
+                    applied_work[i] += (fair[i] + (meff[i] - mass[i]) * acc[i]) * dx
+                    applied_dist[i] += dx
                 if i == 0:
                     continue
                 # the coupler ahead of vehicle i, now that both its ends have moved: peaks

@@ -80,6 +80,10 @@ class FrictionArrays(NamedTuple):
         Disc friction coefficient (0 where there is no disc brake).
     force_max_N : ndarray
         Full block force, 1000 * sum(F_dyn) from Eq. 4 for the braked weight [N].
+    full_scale_N : ndarray
+        :func:`force_scale` at the full block force: the retarding force per unit of
+        Karwatzki's speed factor (blocks) or the disc brake force of a fully applied brake [N]
+        (0 where there is no brake).
     """
 
     kind: np.ndarray
@@ -87,6 +91,7 @@ class FrictionArrays(NamedTuple):
     arrangement: np.ndarray
     mu_disc: np.ndarray
     force_max_N: np.ndarray
+    full_scale_N: np.ndarray
 
 
 def compile(consist, params: Params) -> FrictionArrays:  # noqa: A001 - the contract's name
@@ -133,7 +138,9 @@ def compile(consist, params: Params) -> FrictionArrays:  # noqa: A001 - the cont
             mu_disc[i] = b.mu_eff if b.mu_eff is not None else params.mu_eff
             k = b.k if b.k is not None else params.k_loco
             force_max[i] = 1000.0 * v.braked_weight_t * 9.81 / k
-    return FrictionArrays(kind, blocks, arrangement, mu_disc, force_max)
+    full_scale = np.array([force_scale(kind[i], blocks[i], arrangement[i], mu_disc[i],
+                                       force_max[i]) for i in range(n)], float)
+    return FrictionArrays(kind, blocks, arrangement, mu_disc, force_max, full_scale)
 
 
 @jit_inline
