@@ -44,7 +44,7 @@ from .physics.constants import KMH_PER_MS, STANDSTILL_M_S
 from .physics.equations import (centre_offsets_m, curve_resistance_N_per_kN,
                                 train_braked_weight_percent)
 from .physics.kernel import Stats  # noqa: F401 (part of this module's interface)
-from .verdicts import TrainLimits, Verdicts, Watch, adhesion_demand_at_rest, train_limits
+from .verdicts import TrainLimits, Verdicts, Watch, train_limits
 
 
 #: The dtype the kernel takes forces in.
@@ -416,8 +416,10 @@ def _compiled(consist: Consist, params: BrakeParams, coupler, track: Track, resi
                 return hit
     except TypeError:  # an input that is not hashable: compiled every time
         key = None
-    hit = _Compiled(consist, Simulator._compile(consist, params, coupler, track, resistance,
-                                                brakes_on), train_limits(consist, coupler))
+    model = Simulator._compile(consist, params, coupler, track, resistance, brakes_on)
+    hit = _Compiled(consist, model, train_limits(consist, coupler,
+                                                 friction_arrays=model.friction,
+                                                 coupler_arrays=model.couplers))
     if key is not None:
         with _COMPILED_LOCK:
             _COMPILED[key] = hit
@@ -591,7 +593,8 @@ class Simulator:
         return SimulatorState(
             0.0, 0.0, kernel.KinematicState.initial(n, v0_m_s),
             self._brake_model.initial_state(brakes), brakes_module.CommandEvents.empty(),
-            kernel.new_stats(), np.zeros(max(n - 1, 1), bool), watch=Watch(limits))
+            kernel.new_stats(), np.zeros(max(n - 1, 1), bool),
+            watch=Watch(limits, self.standstill_m_s))
 
     @property
     def state(self) -> SimulatorState:
@@ -810,6 +813,7 @@ class Simulator:
             st.command_time_s = st.time_s
             st.command_head_m = float(st.kinematics.x_m[0])
             st.command_speed_m_s = float(st.kinematics.v_m_s[0])
+            st.watch.start(st.command_speed_m_s)
         if commands.emergency and not st.emergency:
             st.emergency = True
             events.append(Event(st.time_s, "brake_applied"))
@@ -906,11 +910,6 @@ class Simulator:
                 events.append(Event(st.time_s, "stopped", {
                     "stopping_distance_m": st.stopping_distance_m,
                     "stop_time_s": st.time_s - st.command_time_s}))
-                if self._brakes:  # the adhesion demand peaks as the wheels come to rest
-                    events += [Event(t, "limit_exceeded", d) for t, d in st.watch.at_rest(
-                        st.time_s, adhesion_demand_at_rest(self.model.friction,
-                                                           st.brakes.force_N,
-                                                           st.watch.limits.weight_N))]
         self._report_out_of_range(events)
         k = st.kinematics
         events += [Event(t, "limit_exceeded", d) for t, d in st.watch.check(

@@ -24,7 +24,8 @@ __all__ = ["KPIS", "bootstrap_quantile", "campaign_report", "format_report", "pa
 KPIS = {
     "abs_peak_buff_kN": ("peak buff force (magnitude)", "kN"),
     "peak_draft_kN": ("peak draft force", "kN"),
-    "max_adhesion_demand": ("max adhesion demand", "-"),
+    "mean_adhesion": ("largest mean utilised adhesion (stops from 100 km/h)", "-"),
+    "max_adhesion_demand": ("largest adhesion demand above 30 km/h", "-"),
     "stopping_distance_m": ("stopping distance", "m"),
 }
 #: Quantiles reported.
@@ -59,6 +60,8 @@ def parse_thresholds(items: list[str]) -> dict[str, float]:
 def _kpi_values(table, name: str) -> np.ndarray:
     """Column of KPI ``name`` (larger is worse: the buff force as a magnitude) as floats."""
     col = "peak_buff_kN" if name == "abs_peak_buff_kN" else name
+    if col not in table.column_names:  # results written before the KPI existed
+        return np.full(table.num_rows, np.nan)
     x = np.array(table[col].to_numpy(zero_copy_only=False), float)
     return np.abs(x) if name == "abs_peak_buff_kN" else x
 
@@ -211,8 +214,10 @@ def _section(table, ref: dict | None, thresholds: dict, quantile: float, confide
         if len(x):
             out["quantiles"][name] = {f"{q:g}": bootstrap_quantile(x, q, confidence, rng)[:3]
                                       for q in sorted(set(QUANTILES) | {quantile})}
+    # flags of results written before a criterion existed count as passed
     out["verdict_counts"] = {flag: int((~np.array(table[flag].to_pylist(), bool)[ok]).sum())
-                             for flag in ("draft_ok", "buff_ok", "adhesion_ok")}
+                             if flag in table.column_names else 0
+                             for flag in ("draft_ok", "buff_ok", "travel_ok", "adhesion_ok")}
     z = _z(confidence)
     for name, limit in thresholds.items():
         x = kpis[name]
@@ -316,8 +321,9 @@ def format_report(rep: dict) -> str:
             lines.append(f"  {label} [{unit}]  {cells}")
         vc = sec["verdict_counts"]
         lines.append(f"  verdicts: {vc['draft_ok']} runs beyond the draft strength, "
-                     f"{vc['buff_ok']} beyond the buff strength, {vc['adhesion_ok']} beyond the "
-                     "adhesion limit")
+                     f"{vc['buff_ok']} beyond the buff strength, {vc['travel_ok']} beyond the "
+                     f"couplers' travel (forces not physical), {vc['adhesion_ok']} beyond the "
+                     "mean-adhesion limit")
         for kpi, e in sec["exceedance"].items():
             lo, hi = e["interval"]
             lines.append(f"  P({kpi} > {e['threshold']:g}) = {e['probability']:.4g} "

@@ -35,8 +35,9 @@ never in a report of part of the data.
 Verdicts (:mod:`ltd_brake_ros.verdicts`) judge the recorded peaks by the limits in the run
 information (``limits``, stored by the recorder); without them, the coupler criteria use the
 standard defaults and adhesion is not assessed (the vehicle masses are unknown). The adhesion
-demand is the largest recorded brake force / weight of each vehicle: sampled at the recorded
-instants, it can fall short of the simulator's, which also takes it as the wheels come to rest.
+records (mean utilised adhesion, demand above and below 30 km/h) and the couplers' travel
+(deflections from the vehicles' positions, the first sample unloaded) are taken at the
+recorded instants: the same definitions as the simulator's, sampled more coarsely.
 
 The brake pipe, when recorded: pipe-pressure profiles along the train just before the pipe
 first moves (some vehicle's pressure differs from its first sample, or from its sample at the
@@ -61,8 +62,8 @@ import numpy as np
 from ..physics.constants import KMH_PER_MS, STANDSTILL_M_S
 from ..recording.reader import BagError, bag_info
 from ..simulator import CouplerPeaks
-from ..verdicts import (CRITERIA, TrainLimits, Verdicts, default_coupler_limits, judge,
-                        limits_from_metadata)
+from ..verdicts import (CRITERIA, SampledDemand, TrainLimits, Verdicts,
+                        default_coupler_limits, judge, limits_from_metadata)
 from .samples import BRAKE_COMMAND, plant_samples
 
 __all__ = ["RunReport", "analyse"]
@@ -359,7 +360,9 @@ class RunReport:
         if self.has_brake_pipe:
             lines += self._describe_pipe()
         if self.verdicts is not None:
-            lines.append(f"Verdicts: {'PASS' if self.verdicts.passed else 'FAIL'}")
+            lines.append(f"Verdicts: {self.verdicts.status}" + (
+                "  (NON-PHYSICAL: couplers beyond their travel)"
+                if self.verdicts.non_physical else ""))
             lines += [f"  {line}" for line in self.verdicts.describe()]
         for p in self.plots:
             lines.append(f"Plot: {p}")
@@ -454,6 +457,8 @@ def analyse(path, namespace: str | None = None) -> RunReport:
             pos.add(t, value[0])
             if first_position is None:
                 first_position = value
+            if watch is not None:
+                watch.positions(t, value)
         elif name == "vehicles/brake_force":
             if head_wagon is None:
                 head_wagon = 1 if value.size > 1 else 0
@@ -535,14 +540,18 @@ def analyse(path, namespace: str | None = None) -> RunReport:
         def kmh(times):
             return np.interp(times, ts, head) * KMH_PER_MS
         rep.limits = watch.limits
+        if rep.command_speed_kmh is not None:  # the stop starts at the brake command
+            watch.sampled.command(rep.command_speed_kmh / KMH_PER_MS)
         rep.verdicts = judge(
             watch.limits, peak_draft_N=rep.coupler_peak_draft_N,
             peak_draft_time_s=rep.coupler_peak_draft_time_s,
             draft_speed_kmh=kmh(rep.coupler_peak_draft_time_s),
             peak_buff_N=rep.coupler_peak_buff_N, peak_buff_time_s=rep.coupler_peak_buff_time_s,
             buff_speed_kmh=kmh(rep.coupler_peak_buff_time_s),
-            adhesion_demand=watch.adhesion, adhesion_time_s=watch.adhesion_time_s,
-            adhesion_speed_kmh=watch.adhesion_speed_kmh, first_time_s=watch.first_time_s)
+            demand=watch.sampled.result() if watch.limits.adhesion_limit.size else None,
+            travel_beyond_mm=watch.beyond_mm if watch._x0 is not None else None,
+            travel_time_s=watch.beyond_t, travel_speed_kmh=watch.beyond_kmh,
+            first_time_s=watch.first_time_s)
     return rep
 
 
@@ -634,19 +643,22 @@ def _fill_time(t: np.ndarray, p: np.ndarray, reference_s: float) -> float | None
 
 
 class _Watch:
-    """Verdict tracking while the recording streams: first sample beyond each limit, and each
-    vehicle's largest brake force / weight."""
+    """Verdict tracking while the recording streams: first sample beyond each limit, each
+    coupler's deflection against its travel, and each vehicle's adhesion records."""
 
     def __init__(self, metadata: dict, n_vehicles: int):
         self.limits = limits_from_metadata(metadata.get("limits"), n_vehicles) or \
             default_coupler_limits(n_vehicles)
         n, nc = self.limits.adhesion_limit.size, self.limits.draft_strength_N.size
-        self.first_time_s = {name: np.full(n if name == "adhesion" else nc, -1.0)
-                             for name in CRITERIA}
-        self.adhesion = np.zeros(n)
-        self.adhesion_time_s = np.zeros(n)
-        self.adhesion_speed_kmh = np.zeros(n)
+        self.first_time_s = {name: np.full(nc if CRITERIA[name].element == "coupler" else n,
+                                           -1.0) for name in CRITERIA}
+        self.sampled = SampledDemand(self.limits)
         self.speed = None
+        self.position = None
+        self._x0 = None  # the first positions: couplers start unloaded
+        self.beyond_mm = np.zeros(nc)
+        self.beyond_t = np.zeros(nc)
+        self.beyond_kmh = np.full(nc, np.nan)
 
     def fits(self, n_vehicles: int, n_couplers: int) -> bool:
         """The limits are those of a train of this size (the arrays never changed size)."""
@@ -666,18 +678,28 @@ class _Watch:
         self._first("buff_strength", t, -force > lim.buff_strength_N)
         self._first("endurable_lcf", t, -force > lim.endurable_lcf_N)
 
-    def brake(self, t: float, force: np.ndarray) -> None:
-        lim = self.limits
-        if force.shape != lim.weight_N.shape:
+    def positions(self, t: float, x: np.ndarray) -> None:
+        self.position = x
+        if self._x0 is None:
+            self._x0 = x.copy()
+        lo, hi = self.limits.travel_mm
+        if x.shape != self._x0.shape or x.size != self.beyond_mm.size + 1:
             return
-        demand = np.abs(force) / lim.weight_N
-        up = demand > self.adhesion
+        d = (np.diff(-x) - np.diff(-self._x0)) * 1e3  # coupler deflections, draft positive
+        beyond = np.maximum(np.maximum(d - hi, lo - d), 0.0)
+        up = beyond > self.beyond_mm
         if up.any():
-            self.adhesion[up] = demand[up]
-            self.adhesion_time_s[up] = t
-            if self.speed is not None and self.speed.shape == demand.shape:
-                self.adhesion_speed_kmh[up] = np.abs(self.speed[up]) * KMH_PER_MS
-        self._first("adhesion", t, demand > lim.adhesion_limit)
+            self.beyond_mm[up] = beyond[up]
+            self.beyond_t[up] = t
+            if self.speed is not None and self.speed.size:
+                self.beyond_kmh[up] = abs(float(self.speed[0])) * KMH_PER_MS
+        self._first("coupler_travel", t, beyond > 0.0)
+
+    def brake(self, t: float, force: np.ndarray) -> None:
+        if self.speed is None or self.position is None:
+            return
+        self.sampled.add(t, self.speed, self.position, force)
+        self.first_time_s["adhesion_at_speed"] = self.sampled.first_at_speed_s
 
 
 def _head_position(tp, xp, ts, vs, t: float) -> float:

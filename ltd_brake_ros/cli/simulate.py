@@ -79,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
         out["couplers_out_of_lut"] = [dict(e.detail, time_s=e.time_s) for e in lut_events]
         out["limits_exceeded"] = _limit_events(events)
         out["verdicts"] = verdicts.as_dict()
+        out["non_physical"] = verdicts.non_physical
         print(json_by_key(out))
         return 0
     print(f"train            {res.consist}: {res.vehicles} vehicles, {res.train_length_m:.1f} m, "
@@ -180,7 +181,8 @@ def _limit_events(events) -> list[dict]:
 def _print_verdicts(verdicts) -> None:
     """The verdicts table, one line per criterion and per coupler or vehicle beyond a limit."""
     lines = verdicts.describe()
-    print(f"verdicts         {'PASS' if verdicts.passed else 'FAIL'}")
+    print(f"verdicts         {verdicts.status}"
+          + ("  (NON-PHYSICAL: couplers beyond their travel)" if verdicts.non_physical else ""))
     for line in lines:
         print(f"  {line}")
 

@@ -210,8 +210,9 @@ class Campaign:
         Fittable parameter short name -> Distribution.
     manoeuvres : tuple of Manoeuvre
         Each train runs each of them (one row per train and manoeuvre).
-    adhesion_limit : float
-        Largest adhesion demand (brake force / weight) deemed safe [-].
+    adhesion_limit : float or None
+        Limit of every vehicle's mean utilised adhesion [-] (None: the verdicts' defaults,
+        which depend on wheel-slide protection, see :mod:`ltd_brake_ros.verdicts`).
     step_s : float
         Integration step [s].
     vehicle_types : dict
@@ -232,7 +233,7 @@ class Campaign:
     brake_params: tuple
     uncertainties: dict
     manoeuvres: tuple
-    adhesion_limit: float
+    adhesion_limit: float | None
     step_s: float
     vehicle_types: dict
     vehicle_lengths_m: dict
@@ -512,7 +513,8 @@ def campaign_from_mapping(data: Any, source: str, digest: str = "",
         batch_size=f.integer("batch_size", 50, lo=1, hi=100_000), families=families,
         couplers=coupler_variants, brake_params=brake_variants, uncertainties=uncertainties,
         manoeuvres=_manoeuvres(f),
-        adhesion_limit=f.number("adhesion_limit", 0.15, lo=0.0, lo_open=True, hi=1.0),
+        adhesion_limit=(f.number("adhesion_limit", lo=0.0, lo_open=True, hi=1.0)
+                        if f.has("adhesion_limit") else None),
         step_s=step, vehicle_types=dict(extra), vehicle_lengths_m=library)
 
 

@@ -104,13 +104,19 @@ class VehicleLimits:
         Endurable longitudinal compressive force: the buff force it runs safely under
         (EN 15839, from the UIC 530-2 tests), magnitude [N].
     adhesion_limit : float or None
-        Largest wheel-rail adhesion its brake may demand, brake force / weight [-].
+        Limit of its mean utilised adhesion over a stop, mean brake force at the rails /
+        weight [-] (None: the default of :mod:`ltd_brake_ros.verdicts`, by
+        ``wheel_slide_protection``).
+    wheel_slide_protection : bool
+        It has wheel-slide protection (EN 15595): the default mean-adhesion limit is then
+        0.15 instead of 0.12.
     """
 
     draft_strength_N: float | None = None
     buff_strength_N: float | None = None
     endurable_lcf_N: float | None = None
     adhesion_limit: float | None = None
+    wheel_slide_protection: bool = False
 
 
 @dataclass(frozen=True)
@@ -284,7 +290,7 @@ def _parse_limits(data: Any, source: str, path: str, base: VehicleLimits) -> Veh
     """Limits given in a ``limits`` mapping, the others from ``base``."""
     f = Fields(data, source, path)
     f.reject_unknown({"draft_strength_kN", "buff_strength_kN", "endurable_lcf_kN",
-                      "adhesion_limit"})
+                      "adhesion_limit", "wheel_slide_protection"})
     # forces up to 20 000 kN, ten times a wagon body's proof load (as the coupler tables)
     values = {name: 1e3 * f.number(key, lo=0.0, lo_open=True, hi=20000.0)
               for name, key in (("draft_strength_N", "draft_strength_kN"),
@@ -292,6 +298,8 @@ def _parse_limits(data: Any, source: str, path: str, base: VehicleLimits) -> Veh
                                 ("endurable_lcf_N", "endurable_lcf_kN")) if f.has(key)}
     if f.has("adhesion_limit"):
         values["adhesion_limit"] = f.number("adhesion_limit", lo=0.0, lo_open=True, hi=1.0)
+    if f.has("wheel_slide_protection"):
+        values["wheel_slide_protection"] = f.boolean("wheel_slide_protection", False)
     return replace(base, **values)
 
 

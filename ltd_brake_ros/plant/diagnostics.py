@@ -205,9 +205,9 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
     # run goes on: the plant reports what a real train would not survive)
     verdicts = sim.verdicts()
     values.update(diagnostic_values(verdicts))
-    if not verdicts.passed and level == OK:
-        failed = [c.name for c in verdicts.criteria if c.passed is False]
-        level, message = WARN, f"{message}; limits exceeded: {', '.join(failed)}"
+    if verdicts.status != "PASS" and level == OK:
+        beyond = [c.name for c in verdicts.criteria if c.status in ("FAIL", "WARN")]
+        level, message = WARN, f"{message}; limits exceeded: {', '.join(beyond)}"
     if recording_error:
         values["recording_error"] = recording_error
         if level == OK:

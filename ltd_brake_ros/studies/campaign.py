@@ -228,8 +228,10 @@ KPI_FIELDS = (
     ("peak_draft_time_s", pa.float64()),
     ("peak_buff_kN", pa.float64()), ("peak_buff_coupler", pa.int32()),
     ("peak_buff_time_s", pa.float64()),
+    ("mean_adhesion", pa.float64()), ("mean_adhesion_vehicle", pa.int32()),
     ("max_adhesion_demand", pa.float64()), ("max_adhesion_vehicle", pa.int32()),
-    ("draft_ok", pa.bool_()), ("buff_ok", pa.bool_()), ("adhesion_ok", pa.bool_()),
+    ("draft_ok", pa.bool_()), ("buff_ok", pa.bool_()), ("travel_ok", pa.bool_()),
+    ("adhesion_ok", pa.bool_()),
     ("steps", pa.int64()), ("newton_iterations", pa.int64()),
     ("newton_iterations_per_step", pa.float64()), ("max_newton_iterations", pa.int32()),
     ("couplers_beyond_lut", pa.int32()),
@@ -339,15 +341,20 @@ def _simulate(c: Campaign, m, consist, speed_kmh: float, params, lut) -> dict:
                "newton_iterations_per_step": sim.newton_iterations / max(sim.steps, 1),
                "max_newton_iterations": sim.max_newton_iterations,
                "couplers_beyond_lut": sim.coupler_excursions().count}
-    # the verdicts by the coupler variant's strengths and the campaign's adhesion limit (the
-    # adhesion demand peaks as the train comes to rest: see ltd_brake_ros.verdicts)
-    verdicts = sim.verdicts(verdicts_module.train_limits(consist, lut,
-                                                         adhesion_limit=c.adhesion_limit))
-    adhesion = verdicts["adhesion"]
-    out["max_adhesion_demand"] = adhesion.worst_value
-    out["max_adhesion_vehicle"] = adhesion.worst_number + 1  # counted from 1 at the head
+    # the verdicts by the coupler variant's strengths and the campaign's adhesion limit
+    verdicts = sim.verdicts(verdicts_module.train_limits(
+        consist, lut, adhesion_limit=c.adhesion_limit, friction_arrays=sim.model.friction,
+        coupler_arrays=sim.model.couplers))
+    # the largest mean utilised adhesion of a vehicle (NaN: no stop in the criterion's scope)
+    # and the largest instantaneous demand above 30 km/h; vehicles counted from 1 at the head
+    mean = verdicts["adhesion"]
+    out["mean_adhesion"] = mean.worst_value if mean.assessed else math.nan
+    out["mean_adhesion_vehicle"] = mean.worst_number + 1 if mean.assessed else 0
+    at_speed = verdicts["adhesion_at_speed"]
+    out["max_adhesion_demand"] = at_speed.worst_value
+    out["max_adhesion_vehicle"] = at_speed.worst_number + 1
     flags = verdicts_module.flags(verdicts)
-    for name in ("draft_ok", "buff_ok", "adhesion_ok"):
+    for name in ("draft_ok", "buff_ok", "travel_ok", "adhesion_ok"):
         out[name] = flags[name]
     return out
 

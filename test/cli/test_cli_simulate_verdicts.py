@@ -12,9 +12,9 @@ from ltd_brake_ros.studies.runs import emergency_stop
 
 
 def test_json_carries_the_verdicts_and_equals_the_emergency_stop(capsys):
-    assert main(["simulate", "--scenario", "8", "--json"]) == 0
+    assert main(["simulate", "--scenario", "2", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    sc = get_scenario(8)
+    sc = get_scenario(2)
     ref = emergency_stop(sc.consist(), sc.speed_kmh)
     # the same run as emergency_stop, number for number
     for key in ("stopping_distance_m", "stop_time_s", "peak_draft_kN", "peak_buff_kN",
@@ -24,16 +24,19 @@ def test_json_carries_the_verdicts_and_equals_the_emergency_stop(capsys):
     assert out["brake_command_speed_kmh"] == pytest.approx(sc.speed_kmh, rel=1e-12)
     assert out["venting_vehicle"] == 0
     v = out["verdicts"]
-    assert [c["criterion"] for c in v["criteria"]] == ["draft_strength", "buff_strength",
-                                                       "endurable_lcf", "adhesion"]
+    assert [c["criterion"] for c in v["criteria"]] == [
+        "draft_strength", "buff_strength", "endurable_lcf", "coupler_travel", "adhesion",
+        "adhesion_at_speed", "adhesion_low_speed"]
     draft = v["criteria"][0]
     assert draft["status"] == "PASS" and draft["worst_kN"] == pytest.approx(ref.peak_draft_kN)
     assert draft["worst_coupler"] == ref.peak_draft_coupler
-    # 50 t wagons: the adhesion demand near standstill is beyond 0.15, every wagon named
-    adhesion = v["criteria"][3]
-    assert adhesion["status"] == "FAIL" and not v["passed"]
-    assert {e["vehicle"] for e in adhesion["exceedances"]} == set(range(1, sc.consist().n))
-    assert {e["vehicle"] for e in out["limits_exceeded"]} == set(range(1, sc.consist().n))
+    # 50 t wagons from 100 km/h: a mean utilised adhesion near 0.10, within 0.12; the demand
+    # near standstill is information, never a failure
+    adhesion = v["criteria"][4]
+    assert adhesion["status"] == "PASS" and 0.09 < adhesion["worst"] < 0.12
+    assert v["criteria"][6]["status"] == "INFO" and v["criteria"][6]["worst"] > 0.15
+    assert v["passed"] and v["status"] == "PASS" and out["non_physical"] is False
+    assert all(c["scope"] and c["origin"] for c in v["criteria"])
 
 
 def test_text_names_the_speed_at_the_command_and_the_verdicts(capsys):
@@ -42,10 +45,11 @@ def test_text_names_the_speed_at_the_command_and_the_verdicts(capsys):
     assert "brake command    emergency at t = 0.00 s, 50.00 km/h; brake pipe vented at " \
            "vehicle 0" in text
     assert "from the brake command" in text
-    assert "verdicts         FAIL" in text  # 80 t wagons: 0.16 adhesion as they come to rest
-    assert "PASS  Coupler draft strength: limit" in text
-    assert "FAIL  Adhesion demand of the air brake" in text
-    assert "... and 5 more vehicles beyond their limit" in text  # 10 wagons, 5 shown
+    assert "verdicts         PASS" in text
+    assert "PASS  Coupler draft strength (every coupler, all speeds): limit 850 kN" in text
+    # a stop from 50 km/h is below the reference speed of mean-value brake calculations
+    assert "not assessed  Mean utilised adhesion: not judged: a stop from 50 km/h" in text
+    assert "INFO  Adhesion demand at low speed" in text and "source: " in text
 
 
 def test_a_script_reports_the_speed_at_its_brake_command(tmp_path, capsys):
@@ -58,4 +62,4 @@ def test_a_script_reports_the_speed_at_its_brake_command(tmp_path, capsys):
     # two seconds of coasting on level track: running resistance (Eq. 2, well below 5 N/kN at
     # 50 km/h) slows the train by less than 2 s x 0.05 m/s^2 = 0.36 km/h
     assert 50.0 - 0.36 < out["brake_command_speed_kmh"] < 50.0
-    assert out["verdicts"]["criteria"][3]["status"] == "FAIL"
+    assert out["verdicts"]["status"] == "PASS"

@@ -12,7 +12,8 @@ KEYS = ["state", "sim_time_s", "real_time_factor", "achieved_real_time_factor", 
         "couplers_beyond_lut", "brake_demand", "traction_command", "overcharge_command",
         "rejected_inputs",
         "inputs_handled", "resets", "recording", "verdicts", "verdict_draft_strength",
-        "verdict_buff_strength", "verdict_endurable_lcf", "verdict_adhesion"]
+        "verdict_buff_strength", "verdict_endurable_lcf", "verdict_coupler_travel",
+        "verdict_adhesion", "verdict_adhesion_at_speed", "verdict_adhesion_low_speed"]
 
 
 def test_pace_window_measures_simulated_over_wall_time_since_the_last_report():
@@ -44,12 +45,13 @@ def test_report_after_an_emergency_stop_shows_the_stop_and_the_peak_coupler_forc
     status = plant.statuses[-1][1]
     values, sim = status.values, runner.sim
     assert list(values) == KEYS + ["stopping_distance_m", "stop_time_s"]
-    # the 50 t wagons' air brake asks more adhesion than the 0.15 a braking calculation may
-    # assume (see test/physics/test_verdicts.py): a verdict the report turns into a WARN
+    # an ordinary stop is within every limit: no warning; from the short train's low speed
+    # the mean utilised adhesion is not judged (mean-value calculations start at 100 km/h)
     assert (status.level, status.message, values["state"]) == \
-        (WARN, "shutdown_after_stop_s reached; limits exceeded: adhesion", "finished")
-    assert values["verdicts"] == "FAIL" and values["verdict_adhesion"].startswith("FAIL: 2 ")
+        (OK, "shutdown_after_stop_s reached", "finished")
+    assert values["verdicts"] == "PASS" and values["verdict_adhesion"] == "not assessed"
     assert values["verdict_draft_strength"] == values["verdict_buff_strength"] == "PASS"
+    assert values["verdict_adhesion_low_speed"].startswith("INFO: largest ")
     peaks = sim.coupler_peaks()
     # the one peak summary, in kN; a braking train pulls its couplers and pushes some
     assert (values["peak_draft_kN"], values["peak_draft_coupler"]) == \
