@@ -1049,6 +1049,7 @@ class Watch:
         self._buff_seen = np.zeros(nc)
         self.demand = VehicleDemand.empty(n)
         self.standstill_m_s = float(standstill_m_s)
+        self._at_speed_force_N = ADHESION_AT_SPEED_LIMIT * limits.weight_N
         # when each vehicle's braked part ended (its speed fell below 5 km/h), and at what speed
         self._mean_end_t = np.zeros(n)
         self._mean_end_kmh = np.zeros(n)
@@ -1092,12 +1093,15 @@ class Watch:
                     self._draft_seen, self._buff_seen, self.draft_speed_kmh,
                     self.buff_speed_kmh, first["draft_strength"], first["buff_strength"],
                     first["endurable_lcf"])
-        if lim.weight_N.size == vehicle_speed_m_s.size:
-            new += _scan_vehicles(t1, vehicle_speed_m_s, brake_force_N, lim.weight_N,
-                                  ADHESION_SPEED_KMH / KMH_PER_MS, self.standstill_m_s,
-                                  ADHESION_AT_SPEED_LIMIT, d.at_speed, d.at_speed_time_s,
-                                  d.at_speed_kmh, first["adhesion_at_speed"], d.low_speed,
-                                  d.low_speed_time_s, d.low_speed_kmh)
+        n = lim.weight_N.size
+        if n == vehicle_speed_m_s.size:
+            # the kernel keeps each vehicle's brake-force peak above 30 km/h: first seen
+            # beyond the limit at the peak that the chunk's end shows
+            first_at = first["adhesion_at_speed"]
+            over = (kin.peak_brake_fast_N[:n] > self._at_speed_force_N) & (first_at < 0.0)
+            if over.any():
+                first_at[over] = kin.peak_brake_fast_time_s[:n][over]
+                new += int(over.sum())
             # the end of each vehicle's braked part: the last chunk end it ran at 5 km/h+
             fast = np.abs(vehicle_speed_m_s) >= MEAN_ADHESION_MIN_SPEED_M_S
             if fast.any():
@@ -1114,12 +1118,11 @@ class Watch:
         """The limits first exceeded since the last call, as (time_s, detail)."""
         out = []
         nc = self._draft_seen.size
+        d = self.demand_of(kin)
         values = {"draft_strength": kin.peak_draft_N[:nc], "buff_strength": -kin.peak_buff_N[:nc],
-                  "endurable_lcf": -kin.peak_buff_N[:nc],
-                  "adhesion_at_speed": self.demand.at_speed}
+                  "endurable_lcf": -kin.peak_buff_N[:nc], "adhesion_at_speed": d.at_speed}
         speeds = {"draft_strength": self.draft_speed_kmh, "buff_strength": self.buff_speed_kmh,
-                  "endurable_lcf": self.buff_speed_kmh,
-                  "adhesion_at_speed": self.demand.at_speed_kmh}
+                  "endurable_lcf": self.buff_speed_kmh, "adhesion_at_speed": d.at_speed_kmh}
         for name in values:
             first, done = self.first_time_s[name], self._reported[name]
             for j in np.flatnonzero((first >= 0.0) & ~done):
@@ -1142,17 +1145,22 @@ class Watch:
                 "speed_kmh": speed_kmh}
 
     def demand_of(self, kin) -> VehicleDemand:
-        """The adhesion records so far, the mean from the kernel's brake work."""
+        """The adhesion records so far, from the kernel's running records: the brake's work
+        while fully applied (the mean) and its peaks above and below 30 km/h."""
         d = self.demand
         n = d.at_speed.size
+        w = self.limits.weight_N
         work = np.asarray(kin.applied_work_J[:n], float)
         dist = np.asarray(kin.applied_distance_m[:n], float)
-        w = self.limits.weight_N
         with np.errstate(invalid="ignore", divide="ignore"):
             mean = np.where(dist >= MEAN_ADHESION_MIN_DISTANCE_M, work / dist / w, np.nan)
         return VehicleDemand(mean, dist, self._mean_end_t, self._mean_end_kmh,
-                             d.initial_speed_kmh, d.at_speed, d.at_speed_time_s, d.at_speed_kmh,
-                             d.low_speed, d.low_speed_time_s, d.low_speed_kmh)
+                             d.initial_speed_kmh, kin.peak_brake_fast_N[:n] / w,
+                             kin.peak_brake_fast_time_s[:n].copy(),
+                             kin.peak_brake_fast_speed_m_s[:n] * KMH_PER_MS,
+                             kin.peak_brake_slow_N[:n] / w,
+                             kin.peak_brake_slow_time_s[:n].copy(),
+                             kin.peak_brake_slow_speed_m_s[:n] * KMH_PER_MS)
 
     def verdicts(self, kin, limits: TrainLimits | None = None) -> Verdicts:
         """The verdicts table so far.

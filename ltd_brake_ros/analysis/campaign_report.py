@@ -272,6 +272,8 @@ def _plots(folder: Path, manoeuvre: str, kpis: dict, ref: dict | None, name: str
     written = []
     for kpi, x in kpis.items():
         label, unit = KPIS[kpi]
+        if not len(x) and not (ref and len(ref.get(kpi, ()))):
+            continue  # no run has this KPI (e.g. no stop from 100 km/h): nothing to draw
         for kind in ("cdf", "hist"):
             fig, ax = plt.subplots(figsize=(6, 4))
             for data, lab in ((x, name), (ref.get(kpi) if ref else None, ref_name)):

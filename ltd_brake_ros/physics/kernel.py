@@ -190,6 +190,11 @@ class KinematicState(NamedTuple):
     accel_m_s2 : ndarray
         Acceleration of each vehicle at the end of the last step, the step's own derivative
         [m/s^2] (the error estimate's predictor uses it).
+    peak_brake_fast_N, peak_brake_fast_time_s, peak_brake_fast_speed_m_s : ndarray
+        Each vehicle's largest brake force while faster than
+        :data:`ADHESION_SPLIT_SPEED_M_S` [N], when [s] and at what speed [m/s].
+    peak_brake_slow_N, peak_brake_slow_time_s, peak_brake_slow_speed_m_s : ndarray
+        The same while slower, still moving forward (faster than the standstill speed).
     applied_work_J, applied_distance_m : ndarray
         Work of each vehicle's brake at the rails [J] (less what decelerated its rotating
         masses) and the distance it ran [m] while its brake was fully
@@ -222,6 +227,12 @@ class KinematicState(NamedTuple):
     step_control: np.ndarray
     applied_work_J: np.ndarray
     applied_distance_m: np.ndarray
+    peak_brake_fast_N: np.ndarray
+    peak_brake_fast_time_s: np.ndarray
+    peak_brake_fast_speed_m_s: np.ndarray
+    peak_brake_slow_N: np.ndarray
+    peak_brake_slow_time_s: np.ndarray
+    peak_brake_slow_speed_m_s: np.ndarray
 
     @classmethod
     def initial(cls, n: int, speed_m_s: float) -> "KinematicState":
@@ -231,7 +242,8 @@ class KinematicState(NamedTuple):
         return cls(np.zeros(n), v, np.zeros(n), np.full(n, speed_m_s), v == 0.0, np.zeros(n),
                    np.zeros(nc), np.zeros(n), np.zeros(nc), np.zeros(nc), np.zeros(nc),
                    np.zeros(nc), np.zeros(nc), np.full(nc, -1.0), np.full(nc, -1.0),
-                   np.zeros(n), np.zeros(3), np.zeros(n), np.zeros(n))
+                   np.zeros(n), np.zeros(3), np.zeros(n), np.zeros(n),
+                   *(np.zeros(n) for _ in range(6)))
 
     def copy(self) -> "KinematicState":
         """An independent copy."""
@@ -246,6 +258,10 @@ FULL_APPLICATION = 0.95
 #: The braked part of a stop ends below this speed, as braking calculations count it: 5 km/h
 #: [m/s].
 MEAN_ADHESION_MIN_SPEED_M_S = 5.0 / 3.6
+#: The brake forces' peaks are kept apart above and below this speed: adhesion demand is
+#: judged above it, and only reported below it, where block friction rises steeply
+#: (30 km/h) [m/s].
+ADHESION_SPLIT_SPEED_M_S = 30.0 / 3.6
 
 
 class Options(NamedTuple):
@@ -1378,6 +1394,10 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
     full_scale = fr_arrays.full_scale_N
     meff, mass = train.meff_kg, train.mass_kg
     applied_work, applied_dist = state.applied_work_J, state.applied_distance_m
+    pk_fast, pk_fast_t, pk_fast_v = (state.peak_brake_fast_N, state.peak_brake_fast_time_s,
+                                     state.peak_brake_fast_speed_m_s)
+    pk_slow, pk_slow_t, pk_slow_v = (state.peak_brake_slow_N, state.peak_brake_slow_time_s,
+                                     state.peak_brake_slow_speed_m_s)
     xlo = cp.valid_lo_m
     xhi = cp.valid_hi_m
     # what a rejected step undoes: the brake model's state and the applied traction
@@ -1486,6 +1506,16 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
                 x[i] = xhat[i] + bh * u[i]
                 v[i] = u[i]
                 fbrake[i] = fair[i]
+                # the brake force's peaks while moving, apart above and below 30 km/h
+                if u[i] > ADHESION_SPLIT_SPEED_M_S:
+                    if fair[i] > pk_fast[i]:
+                        pk_fast[i] = fair[i]
+                        pk_fast_t[i] = tc
+                        pk_fast_v[i] = u[i]
+                elif u[i] > v_stop and fair[i] > pk_slow[i]:
+                    pk_slow[i] = fair[i]
+                    pk_slow_t[i] = tc
+                    pk_slow_v[i] = u[i]
                 if (u[i] >= MEAN_ADHESION_MIN_SPEED_M_S
                         and fa_scale[i] >= FULL_APPLICATION * full_scale[i] > 0.0):
                     # the rails take the brake force less what decelerates the rotating

@@ -345,10 +345,10 @@ def _simulate(c: Campaign, m, consist, speed_kmh: float, params, lut) -> dict:
     verdicts = sim.verdicts(verdicts_module.train_limits(
         consist, lut, adhesion_limit=c.adhesion_limit, friction_arrays=sim.model.friction,
         coupler_arrays=sim.model.couplers))
-    # the largest mean utilised adhesion of a vehicle (NaN: no stop in the criterion's scope)
+    # the largest mean utilised adhesion of a vehicle (null: no stop in the criterion's scope)
     # and the largest instantaneous demand above 30 km/h; vehicles counted from 1 at the head
     mean = verdicts["adhesion"]
-    out["mean_adhesion"] = mean.worst_value if mean.assessed else math.nan
+    out["mean_adhesion"] = mean.worst_value if mean.assessed else None
     out["mean_adhesion_vehicle"] = mean.worst_number + 1 if mean.assessed else 0
     at_speed = verdicts["adhesion_at_speed"]
     out["max_adhesion_demand"] = at_speed.worst_value

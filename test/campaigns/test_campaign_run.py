@@ -39,7 +39,14 @@ def test_serial_table_holds_every_run_once_with_physical_kpis(reference):
         v = r["speed_kmh"] / 3.6
         assert v ** 2 / (2 * G) < r["stopping_distance_m"] < v * r["stop_time_s"]
         assert 0.0 < r["max_adhesion_demand"] < 1.0
-        assert r["adhesion_ok"] == (r["max_adhesion_demand"] <= c.adhesion_limit)
+        # the mean utilised adhesion is judged on stops from 100 km/h (null below), against
+        # the verdicts' default of 0.12 for wagons without wheel-slide protection
+        if r["speed_kmh"] >= 99.5:
+            assert 0.0 < r["mean_adhesion"] < r["max_adhesion_demand"] + 0.1
+            assert r["adhesion_ok"] == (r["mean_adhesion"] <= 0.12)
+        else:
+            assert r["mean_adhesion"] is None and r["adhesion_ok"]
+        assert r["travel_ok"] == (r["couplers_beyond_lut"] == 0)
         assert r["buff_ok"] == (-r["peak_buff_kN"] <= 2000.0)
         # about one Newton iteration a step while braking; a step whose predictor already
         # meets the residual tolerance (steady motion, vehicles at rest) takes none
@@ -120,7 +127,7 @@ def test_sigkill_of_the_driver_then_resume(reference, tmp_path, processes):
         assert f.suffix == ".parquet" and pq.read_metadata(f).num_rows == 2
 
 
-def test_adhesion_demand_is_the_peak_of_a_finely_sampled_stop(reference):
+def test_adhesion_demand_is_the_peak_above_30_kmh_of_a_finely_sampled_stop(reference):
     from ltd_brake_ros.inputs import consist_from_mapping
     from ltd_brake_ros.simulator import Commands, Simulator
     from ltd_brake_ros.studies.campaign import draw, models
@@ -132,12 +139,15 @@ def test_adhesion_demand_is_the_peak_of_a_finely_sampled_stop(reference):
         params, lut = models(c, sample)
         sim = Simulator(consist, sample["speed_kmh"]["emergency"], params, lut, step_s=c.step_s)
         weight_N = np.array([v.mass_kg for v in consist.vehicles]) * G
-        peak = sim.advance(c.step_s, Commands(emergency=True)).brake_force_N / weight_N
+        peak = np.zeros(sim.n)
+        snap = sim.advance(c.step_s, Commands(emergency=True))
         while sim.stop_time_s is None:
-            peak = np.maximum(peak, sim.advance(c.step_s).brake_force_N / weight_N)
+            fast = snap.speed_m_s > 30.0 / 3.6
+            peak = np.where(fast, np.maximum(peak, snap.brake_force_N / weight_N), peak)
+            snap = sim.advance(c.step_s)
         reported = table["max_adhesion_demand"][run].as_py()
-        # the limit at standstill bounds every sample; Karwatzki's speed factor at the last
-        # sampled speeds (< 2 cm/s) is within 0.5 % of its value at rest
+        # the kernel keeps the peak at every step, sub-steps included: at least the sampled
+        # one, and above 30 km/h the block friction changes by far less than 0.5 % a step
         assert peak.max() <= reported <= 1.005 * peak.max()
         assert table["max_adhesion_vehicle"][run].as_py() == int(np.argmax(peak)) + 1
 

@@ -173,7 +173,7 @@ def test_instantaneous_demand_warns_at_speed_and_is_information_below_30_kmh(sce
     sim, _ = scenario_6
     table = sim.verdicts()
     at, low = table["adhesion_at_speed"], table["adhesion_low_speed"]
-    d = sim._state.watch.demand
+    d = sim._state.watch.demand_of(sim._state.kinematics)
     assert at.assessed and np.all(d.at_speed_kmh[d.at_speed_time_s > 0] > 30.0)
     # below 30 km/h: the largest demand is shown, never a failure, never taken at rest
     assert low.status == "INFO" and low.passed is True and low.worst_value > 0.15
