@@ -9,6 +9,7 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(exclude=["test", "test.*", "benchmarks"]),
+    package_data={PACKAGE: ["py.typed"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
@@ -45,6 +46,11 @@ setup(
         ],
         # ltd-brake campaign: Dask distributed executor and Parquet results
         "campaign": ["dask[distributed]>=2024.1", "pyarrow>=14"],
+        # the Python API's time series as pandas DataFrames and xarray Datasets, Parquet files
+        "analysis": ["pandas>=2.1", "xarray>=2024.1", "pyarrow>=14"],
+        # the documentation site (mkdocs build)
+        "docs": ["mkdocs>=1.6", "mkdocs-material>=9.5", "mkdocstrings>=0.25",
+                 "mkdocstrings-python>=1.10"],
         "test": ["pytest>=8", "pytest-timeout>=2.3", "hypothesis>=6.100", "rosbags>=0.10",
                  "mcap-ros2-support>=0.5"],
     },

@@ -29,8 +29,61 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         f"a sim_node recording, a state every {RECORD_CHUNK_S:g} s (the "
                         "emergency stop is then advanced in chunks of that length); "
                         "ltd-brake report DIR analyses it")
+    p.add_argument("--timeseries", metavar="FILE",
+                   help="write every vehicle's and coupler's history, a sample every "
+                        f"{RECORD_CHUNK_S:g} s, to FILE in long (tidy) form: time_s, element "
+                        "(vehicle/coupler), number, quantity, unit, value; .parquet (needs "
+                        "pyarrow) or .csv by the suffix; an existing FILE is refused")
     p.set_defaults(func=run)
     return p
+
+
+def _timeseries(args: argparse.Namespace):
+    """The sampler of ``--timeseries`` (None without it), the file checked before the run."""
+    from pathlib import Path
+
+    from ..inputs import InputError
+
+    if not getattr(args, "timeseries", None):
+        return None
+    path = Path(args.timeseries)
+    if path.suffix.lower() not in (".csv", ".parquet"):
+        raise InputError("command line", "--timeseries",
+                         f"{path}: give a .parquet or .csv file")
+    if path.exists():
+        raise InputError("command line", "--timeseries",
+                         f"{path} exists: choose a new file (nothing is overwritten)")
+    if not path.parent.is_dir():
+        raise InputError("command line", "--timeseries",
+                         f"{path.parent} is not a folder")
+    from ..api import _Sampler
+
+    return _Sampler()
+
+
+def _write_timeseries(args, sampler, sim, speed_kmh: float) -> None:
+    from ..api import _attrs
+
+    if sampler is not None:
+        import sys
+
+        series = sampler.series(sim, _attrs(sim, speed_kmh))
+        series.write(args.timeseries)
+        print(f"time series: {series.time_s.size} samples of {sim.n} vehicles written to "
+              f"{args.timeseries}", file=sys.stderr)
+
+
+def _chunk(rec, sampler, default_s: float) -> float:
+    """Chunk length: the recording's or the time series' sample interval when sampling."""
+    return RECORD_CHUNK_S if sampler is not None else rec.chunk_s(default_s)
+
+
+def _on_chunk(rec, sampler, events: list):
+    def on_chunk(snap):
+        events.extend(snap.events)
+        if sampler is not None:
+            sampler(snap)
+    return rec.after(on_chunk)
 
 
 #: Simulated time per chunk of an emergency stop [s], and when to give up if the train has not
@@ -56,6 +109,7 @@ def run(args: argparse.Namespace) -> int:
         return _run_script(args, spec)
     params, lut = spec.params, spec.lut
     events = []
+    sampler = _timeseries(args)
     # the recording's commands: the emergency brake at t = 0
     script = CommandScript(((0.0, {"emergency": True}),))
     with _Progress() as progress, _Recording(args, spec, script) as rec:
@@ -63,10 +117,10 @@ def run(args: argparse.Namespace) -> int:
         # chunk by chunk (no grouping): the verdicts and events sample the chunks' ends
         sim = emergency_run(spec.consist, spec.speed_kmh, params, lut, spec.track,
                             step_s=args.step_s, tolerance_m_s=tolerance(args),
-                            chunk_s=rec.chunk_s(CHUNK_S), max_time_s=MAX_TIME_S,
-                            on_chunk=rec.after(lambda s: events.extend(s.events)),
-                            progress=progress)
+                            chunk_s=_chunk(rec, sampler, CHUNK_S), max_time_s=MAX_TIME_S,
+                            on_chunk=_on_chunk(rec, sampler, events), progress=progress)
     res = summarize(sim, time.perf_counter() - start)
+    _write_timeseries(args, sampler, sim, spec.speed_kmh)
     verdicts = sim.verdicts()
     lut_events = [e for e in events if e.kind == "coupler_out_of_lut"]
     if args.json:
@@ -123,15 +177,16 @@ def _run_script(args: argparse.Namespace, spec) -> int:
 
     script = load_command_script(args.commands)
     events = []
+    sampler = _timeseries(args)
 
     with _Progress() as progress, _Recording(args, spec, script) as rec:
         start = time.perf_counter()  # the run and its recording, not opening the folder
         sim = scripted_run(spec.consist, spec.speed_kmh, script, spec.params, spec.lut,
                            spec.track, step_s=args.step_s, tolerance_m_s=tolerance(args),
-                           chunk_s=rec.chunk_s(RECORD_CHUNK_S),
-                           on_chunk=rec.after(lambda s: events.extend(s.events)),
-                           progress=progress)
+                           chunk_s=_chunk(rec, sampler, RECORD_CHUNK_S),
+                           on_chunk=_on_chunk(rec, sampler, events), progress=progress)
     wall = time.perf_counter() - start
+    _write_timeseries(args, sampler, sim, spec.speed_kmh)
     snap = sim.snapshot()
     peaks = sim.coupler_peaks()
     out = {

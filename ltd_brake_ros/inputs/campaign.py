@@ -219,6 +219,9 @@ class Campaign:
         Extra vehicle types (as in a consist file).
     vehicle_lengths_m : dict
         Length over buffers of every known vehicle type [m].
+    document : mapping or None
+        The document a campaign built from a mapping (not a file) was read from: a results
+        folder keeps it as its ``campaign.yaml``.
     """
 
     name: str
@@ -237,6 +240,7 @@ class Campaign:
     step_s: float
     vehicle_types: dict
     vehicle_lengths_m: dict
+    document: Any = None
 
     @property
     def batches(self) -> int:
@@ -515,7 +519,8 @@ def campaign_from_mapping(data: Any, source: str, digest: str = "",
         manoeuvres=_manoeuvres(f),
         adhesion_limit=(f.number("adhesion_limit", lo=0.0, lo_open=True, hi=1.0)
                         if f.has("adhesion_limit") else None),
-        step_s=step, vehicle_types=dict(extra), vehicle_lengths_m=library)
+        step_s=step, vehicle_types=dict(extra), vehicle_lengths_m=library,
+        document=None if Path(source).is_file() else data)
 
 
 def _has_field(params: Any, field: str) -> bool:

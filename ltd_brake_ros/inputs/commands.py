@@ -93,7 +93,24 @@ def load_command_script(path: str | os.PathLike) -> CommandScript:
     CommandScript
     """
     p = resolve_config_path(path)
-    top = Fields(load_yaml(p), str(p))
+    return command_script_from_mapping(load_yaml(p), str(p))
+
+
+def command_script_from_mapping(data: Any, source: str) -> CommandScript:
+    """A command script from the mapping a script file holds (see :func:`load_command_script`).
+
+    Parameters
+    ----------
+    data : mapping
+        ``{"duration_s": ..., "commands": [{"t_s": 0, ...}, ...]}``.
+    source : str
+        Name for error messages.
+
+    Returns
+    -------
+    CommandScript
+    """
+    top = Fields(data, source)
     top.reject_unknown({"name", "description", "duration_s", "commands"})
     duration = top.number("duration_s", lo=0.0, lo_open=True, hi=1e6) if top.has("duration_s") else None
     entries = top.data.get("commands")
@@ -101,7 +118,7 @@ def load_command_script(path: str | os.PathLike) -> CommandScript:
         raise top.error("commands", "missing or empty: give a list of {t_s, ...} entries")
     steps = []
     for i, entry in enumerate(entries):
-        f = Fields(entry, str(p), f"commands[{i}]")
+        f = Fields(entry, source, f"commands[{i}]")
         f.reject_unknown({"t_s", "emergency", "brake_demand", "traction", "driver_brake_valve"})
         t = f.number("t_s", lo=0.0)
         if steps and t < steps[-1][0]:
@@ -123,4 +140,4 @@ def load_command_script(path: str | os.PathLike) -> CommandScript:
             if f.has(name):
                 change[name] = f.number(name, lo=lo, hi=hi)
         steps.append((t, change))
-    return CommandScript(tuple(steps), duration, str(p))
+    return CommandScript(tuple(steps), duration, source)

@@ -219,7 +219,12 @@ def _prepare(c: Campaign, out: Path) -> None:
                                  "choose another --out")
         return
     (out / "batches").mkdir(parents=True, exist_ok=True)
-    shutil.copyfile(c.source, out / "campaign.yaml")
+    if c.document is not None:  # built from a mapping: the folder keeps the document
+        import yaml
+
+        (out / "campaign.yaml").write_text(yaml.safe_dump(c.document, sort_keys=False))
+    else:
+        shutil.copyfile(c.source, out / "campaign.yaml")
     data = {"name": c.name, "campaign_file": str(Path(c.source).resolve()),
             "digest": c.digest, "seed": c.seed, "runs": c.runs, "batch_size": c.batch_size,
             "sampling": c.sampling, "manoeuvres": [m.name for m in c.manoeuvres],

@@ -1,0 +1,165 @@
+"""The public Python API: inputs, runs with their time series, recordings, campaigns."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import ltd_brake_ros as api
+from ltd_brake_ros.inputs import InputError, get_scenario
+from ltd_brake_ros.studies.runs import emergency_stop as summary_only
+
+SMALL_CAMPAIGN = {
+    "name": "from_a_dict", "seed": 3, "runs": 4, "batch_size": 2,
+    "manoeuvres": [{"kind": "emergency", "speed_kmh": {"uniform": [30.0, 40.0]}}],
+    "families": [{"name": "short", "wagons": [2, 3],
+                  "wagon_types": {"Shimmns": {"tare_t": 22.0, "loaded_fraction": 0.5,
+                                              "payload_t": {"uniform": [20.0, 50.0]}}}}],
+    "couplers": [{"file": "couplers/buffer_hook_pugi.yaml"}],
+}
+
+
+@pytest.fixture(scope="module")
+def run6():
+    return api.emergency_stop(api.load_consist("scenario_6"), 100.0)
+
+
+def test_every_public_name_resolves_and_import_stays_cheap():
+    for name in api.__all__:
+        assert getattr(api, name) is not None, name
+    assert (Path(api.__file__).parent / "py.typed").is_file()
+    # importing the package loads no simulation machinery: the command line imports it too
+    code = ("import sys, ltd_brake_ros; heavy = {'numba', 'scipy', 'matplotlib', 'pandas'}; "
+            "print(sorted(heavy & set(sys.modules)))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[]"
+    with pytest.raises(AttributeError):
+        api.no_such_name  # noqa: B018
+
+
+def test_a_consist_loads_from_a_scenario_a_file_or_a_mapping():
+    six = get_scenario(6).consist()
+    for source in ("scenario_6", "6", 6):
+        assert api.load_consist(source) == six
+    assert api.load_consist("consists/e402b_32_shimmns_50t.yaml").n == six.n
+    c = api.load_consist({"vehicles": [{"type": "E402B"}, {"type": "Shimmns", "count": 3}]})
+    assert c.n == 4
+    with pytest.raises(InputError, match="scenario"):
+        api.load_consist("scenario_99")
+    with pytest.raises(InputError):
+        api.load_consist({"vehicles": [{"type": "NoSuchWagon"}]})
+
+
+def test_emergency_stop_is_the_stop_of_the_library_with_its_time_series(run6):
+    ref = summary_only(get_scenario(6).consist(), 100.0)
+    # the same nominal steps whatever the sampling: the same stop, number for number
+    assert run6.summary.stopping_distance_m == ref.stopping_distance_m
+    assert run6.summary.peak_draft_kN == ref.peak_draft_kN
+    assert run6.verdicts.status == "PASS"
+    ts = run6.timeseries
+    k, n = ts.time_s.size, 33
+    assert ts.vehicles["speed_m_s"].shape == (k, n) and ts.couplers["coupler_force_N"].shape \
+        == (k, n - 1)
+    np.testing.assert_allclose(np.diff(ts.time_s), 0.1, atol=1e-9)  # a sample every 0.1 s
+    assert ts.time_s[-1] == pytest.approx(run6.summary.stop_time_s, abs=0.1 + 1e-9)
+    # the samples lie within the run's peaks, and the head's travel is the stopping distance
+    f = ts.couplers["coupler_force_N"]
+    assert f.max() <= run6.summary.peak_draft_kN * 1e3 + 1e-6
+    assert f.min() >= run6.summary.peak_buff_kN * 1e3 - 1e-6
+    x0 = -ts.vehicles["position_m"][0, 0] + 0.0
+    travel = ts.vehicles["position_m"][-1, 0] - ts.vehicles["position_m"][0, 0]
+    assert travel < run6.summary.stopping_distance_m < travel + 0.1 * 100 / 3.6 + x0 + 3.0
+
+
+def test_time_series_as_a_tidy_dataframe_and_an_xarray_dataset(run6):
+    pytest.importorskip("pandas")
+    pytest.importorskip("xarray")
+    ts = run6.timeseries
+    k = ts.time_s.size
+    df = run6.to_dataframe()
+    assert len(df) == k * 33 and {"time_s", "vehicle", "speed_m_s", "brake_force_N"} <= \
+        set(df.columns)
+    assert df.attrs["units"]["speed_m_s"] == "m/s" and "draft" in df.attrs["conventions"]
+    dc = run6.to_dataframe("coupler")
+    assert len(dc) == k * 32 and dc.coupler.min() == 1 and dc.coupler.max() == 32
+    peak = dc.loc[dc.coupler_force_N.idxmax()]
+    assert peak.coupler_force_N == ts.couplers["coupler_force_N"].max()
+    long = run6.to_dataframe(None)
+    assert len(long) == k * (5 * 33 + 32) and set(long.element) == {"vehicle", "coupler"}
+    ds = run6.to_xarray()
+    assert dict(ds.sizes) == {"time": k, "vehicle": 33, "coupler": 32}
+    assert ds.coupler_force_N.attrs["units"] == "N" and "draft" in ds.attrs["conventions"]
+    assert ds.vehicle_name.values[0] == "E402B"
+    np.testing.assert_array_equal(ds.speed_m_s.values, ts.vehicles["speed_m_s"])
+    with pytest.raises(ValueError, match="element"):
+        run6.to_dataframe("wagon")
+
+
+def test_time_series_files_in_long_form(run6, tmp_path):
+    ts = run6.timeseries
+    rows = ts.time_s.size * (5 * 33 + 32)
+    csv = ts.write(tmp_path / "s6.csv")
+    lines = csv.read_text().splitlines()
+    assert lines[0] == "time_s,element,number,quantity,unit,value" and len(lines) == rows + 1
+    pq = pytest.importorskip("pyarrow.parquet")
+    table = pq.read_table(ts.write(tmp_path / "s6.parquet"))
+    assert table.num_rows == rows and "conventions" in {k.decode() for k in
+                                                        table.schema.metadata}
+    with pytest.raises(InputError, match="parquet or .csv"):
+        ts.write(tmp_path / "s6.txt")
+
+
+def test_simulate_writes_the_time_series_and_refuses_to_overwrite(tmp_path, capsys):
+    from ltd_brake_ros.cli.main import main
+
+    out = tmp_path / "s1.csv"
+    assert main(["simulate", "--scenario", "1", "--json", "--timeseries", str(out)]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    lines = out.read_text().splitlines()
+    k = (len(lines) - 1) // (5 * 11 + 10)
+    assert (len(lines) - 1) == k * (5 * 11 + 10)
+    assert k * 0.1 == pytest.approx(summary["stop_time_s"], abs=0.1 + 1e-9)
+    assert main(["simulate", "--scenario", "1", "--timeseries", str(out)]) == 2
+    assert "exists" in capsys.readouterr().err
+
+
+def test_a_command_script_from_a_list(tmp_path):
+    run = api.run_commands(api.load_consist(1), 60.0,
+                           [{"t_s": 0.0, "brake_demand": 0.5}, {"t_s": 5.0, "emergency": True}])
+    assert run.summary is not None and run.simulator.command_time_s == 0.0
+    assert run.timeseries.vehicles["brake_force_N"][-1, 1] > 0.0
+    with pytest.raises(InputError, match="commands\\[0\\]"):
+        api.load_commands([{"t_s": 0.0, "brake_demand": 2.0}])
+
+
+def test_a_recording_reads_back_as_the_run(tmp_path, capsys):
+    from ltd_brake_ros.cli.main import main
+
+    folder = tmp_path / "rec"
+    assert main(["simulate", "--scenario", "1", "--record", str(folder), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    rec = api.read_recording(folder)
+    assert rec.report.stopping_distance_m == pytest.approx(summary["stopping_distance_m"],
+                                                           rel=5e-3)
+    ts = rec.timeseries
+    assert ts.vehicles["speed_m_s"].shape[1] == 11 and ts.couplers["coupler_force_N"].shape[1] \
+        == 10
+    assert ts.vehicle_names[:2] == ["E402B", "Shimmns"] and ts.attrs["initial_speed_kmh"] == 100
+    assert ts.vehicles["speed_m_s"][0, 0] == pytest.approx(100 / 3.6, rel=1e-3)
+
+
+def test_a_campaign_from_a_mapping_runs(tmp_path):
+    pytest.importorskip("pyarrow")
+    c = api.load_campaign(SMALL_CAMPAIGN)
+    table = api.run_campaign(c, tmp_path / "out", jobs=1)
+    assert table.num_rows == 4 and set(table["status"].to_pylist()) == {"ok"}
+    # the same mapping is the same campaign: the folder resumes, nothing is run again
+    again = api.run_campaign(dict(SMALL_CAMPAIGN), tmp_path / "out", jobs=1)
+    assert again.equals(table)
+    with pytest.raises(InputError, match="runs"):
+        api.load_campaign(dict(SMALL_CAMPAIGN, runs=-1))
