@@ -6,6 +6,8 @@
 #                          stopped; then the report and its plots
 #   ./dev.sh test [ARGS]   the whole test suite (ARGS go to pytest)
 #   ./dev.sh bench         the speed benchmark
+#   ./dev.sh docs [ARGS]   build the documentation site into site/ (warnings are errors;
+#                          ARGS go to mkdocs build, e.g. --site-dir DIR)
 #   ./dev.sh run CMD ...   any command inside the environment (e.g. ./dev.sh run ltd-brake validate)
 set -euo pipefail
 cd "$(dirname "$0")"
@@ -51,7 +53,8 @@ case "$cmd" in
     exec ltd-brake report "$run_dir" ;;
   test)  setup; exec python -m pytest "$@" ;;
   bench) setup; exec python benchmarks/bench_integrator.py "$@" ;;
+  docs)  setup; NO_MKDOCS_2_WARNING=1 exec python -m mkdocs build --strict "$@" ;;
   run)   setup; exec "$@" ;;
   setup) setup ;;
-  *) echo "usage: ./dev.sh demo|test|bench|run CMD...|setup" >&2; exit 2 ;;
+  *) echo "usage: ./dev.sh demo|test|bench|docs|run CMD...|setup" >&2; exit 2 ;;
 esac
