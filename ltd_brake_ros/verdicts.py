@@ -525,7 +525,7 @@ def _amount(unit: str, value: float, limit: float) -> str:
         return (f"{value / 1e3:.0f} kN > {limit / 1e3:.0f} kN "
                 f"(+{(value - limit) / 1e3:.0f} kN, +{100.0 * (value - limit) / limit:.0f} %)")
     if unit == "mm":
-        return f"{value:.1f} mm beyond its travel"
+        return f"{value:.1f} mm"
     if not math.isfinite(limit):
         return f"{value:.3f}"
     return f"{value:.3f} > {limit:.3f} (+{value - limit:.3f})"
