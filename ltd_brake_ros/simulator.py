@@ -44,7 +44,7 @@ from .physics.constants import KMH_PER_MS, STANDSTILL_M_S
 from .physics.equations import (centre_offsets_m, curve_resistance_N_per_kN,
                                 train_braked_weight_percent)
 from .physics.kernel import Stats  # noqa: F401 (part of this module's interface)
-from .verdicts import TrainLimits, Verdicts, Watch, train_limits
+from .verdicts import TrainLimits, VehicleDemand, Verdicts, Watch, train_limits
 
 
 #: The dtype the kernel takes forces in.
@@ -752,6 +752,17 @@ class Simulator:
         Verdicts
         """
         return self._state.watch.verdicts(self._state.kinematics, limits)
+
+    def adhesion(self) -> VehicleDemand:
+        """Each vehicle's adhesion records since the last reset: mean utilised adhesion over
+        the braked part of the stop, largest demand above and below 30 km/h
+        (:class:`~ltd_brake_ros.verdicts.VehicleDemand`).
+
+        Returns
+        -------
+        VehicleDemand
+        """
+        return self._state.watch.demand_of(self._state.kinematics)
 
     def braked_weight_percent(self) -> float:
         """Train braked-weight percentage lambda_train, Eq. 11 [%]."""

@@ -131,5 +131,15 @@ def run(args: argparse.Namespace) -> int:
     print()
     print("targets:" if not args.brake_pipe else
           "targets of the brake-pipe model (distances within 1 % of LTDPoliTo):")
-    print("\n".join(targets_lines(rows, bpv.paper_targets if args.brake_pipe else None)))
-    return 0
+    lines = targets_lines(rows, bpv.paper_targets if args.brake_pipe else None)
+    print("\n".join(lines))
+    if scenarios is None:  # the judgments run their own trains: with the whole table only
+        from ..studies.judgments import judgment_targets
+
+        print()
+        print("judgments (verdicts, standstill, couplers' travel):")
+        judged = targets_lines(rows, lambda _rows: judgment_targets(params, lut))
+        print("\n".join(judged))
+        lines += judged
+    # a failed target is a failed validation (for scripts and CI)
+    return 1 if any(line.lstrip().startswith("FAIL") for line in lines) else 0

@@ -1,0 +1,87 @@
+"""Targets of the judgments on a run, as ``ltd-brake validate`` prints them.
+
+Each target is one (what, passed, detail) line, computed from runs made here:
+
+* scenario 6, the paper's validated train: every assessed FAIL or WARN criterion PASSes and its
+  wagons' mean utilised adhesion lies in 0.09-0.11 (the whole stop decelerates at
+  (100/3.6)^2 / (2 x 489 m) / g = 0.080 from the command, delay and rise included);
+* a Shimmns braked at 150 % of its weight (scenario 3's wagon 5) FAILs on its mean;
+* E402B + 300 x 80 t in G braked from the head: every coupler force beyond the coupler model's
+  travel comes with the run marked non-physical.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..inputs import consist_from_mapping, get_scenario
+from .runs import emergency_run
+
+__all__ = ["judgment_targets"]
+
+#: Band of scenario 6's wagons' mean utilised adhesion [-] (see the module).
+SCENARIO_6_MEAN = (0.09, 0.11)
+
+
+def _scenario_6(params, lut) -> tuple[str, bool, str]:
+    sc = get_scenario(6)
+    sim = emergency_run(sc.consist(), sc.speed_kmh, params, lut)
+    table = sim.verdicts()
+    mean = sim.adhesion().mean[1:]
+    lo, hi = SCENARIO_6_MEAN
+    bad = [c.name for c in table.criteria if c.status in ("FAIL", "WARN")]
+    ok = not bad and bool(np.all((lo <= mean) & (mean <= hi)))
+    return ("scenario 6: every assessed verdict PASS, wagons' mean utilised adhesion in "
+            f"{lo}-{hi}", ok, f"verdicts {table.status}"
+            + (f" ({', '.join(bad)})" if bad else "")
+            + f", mean {mean.min():.3f}-{mean.max():.3f}")
+
+
+def _over_braked(params, lut) -> tuple[str, bool, str]:
+    sc = get_scenario(3)
+    c = sc.consist()
+    vs = list(c.vehicles)
+    v = vs[5]
+    vs[5] = dataclasses.replace(v, brake=dataclasses.replace(
+        v.brake, braked_weight_t=1.5 * v.mass_kg / 1e3))
+    sim = emergency_run(dataclasses.replace(c, vehicles=tuple(vs)), sc.speed_kmh, params, lut)
+    crit = sim.verdicts()["adhesion"]
+    named = [e.number for e in crit.exceedances]
+    ok = crit.status == "FAIL" and named == [5]
+    worst = crit.exceedances[0].value if crit.exceedances else crit.worst_value
+    return ("a Shimmns braked at 150 % of its weight (scenario 3, wagon 5) FAILs on its mean",
+            ok, f"{crit.status}, vehicles beyond: {named or 'none'}, mean {worst:.3f}")
+
+
+def _long_train(params, lut) -> tuple[str, bool, str]:
+    c = consist_from_mapping({"name": "E402B + 300 Shimmns (80 t, G)", "vehicles": [
+        {"type": "E402B"},
+        {"type": "Shimmns", "count": 300, "mass_t": 80.0, "brake_position": "G"}]},
+        "long train")
+    sim = emergency_run(c, 100.0, params, lut)
+    table = sim.verdicts()
+    beyond = sim.coupler_excursions().count
+    ok = beyond == 0 or (table.non_physical and table["coupler_travel"].status == "FAIL")
+    return ("E402B + 300 x 80 t in G from the head: forces beyond the couplers' travel are "
+            "marked non-physical", ok,
+            f"{beyond} couplers beyond their travel, run "
+            + ("marked NON-PHYSICAL" if table.non_physical else "not marked")
+            + f"; peak draft {sim.peak_draft_N.max() / 1e3:.0f} kN, buff "
+              f"{-sim.peak_buff_N.min() / 1e3:.0f} kN")
+
+
+def judgment_targets(params=None, lut=None) -> list[tuple[str, bool, str]]:
+    """The judgment targets, one (what, passed, detail) each.
+
+    Parameters
+    ----------
+    params : BrakeParams, optional
+    lut : coupler parameters, optional
+        The models to judge with (default: the shipped ones).
+
+    Returns
+    -------
+    list of tuple
+    """
+    return [f(params, lut) for f in (_scenario_6, _over_braked, _long_train)]
