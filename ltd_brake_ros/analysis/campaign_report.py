@@ -336,7 +336,7 @@ def format_report(rep: dict) -> str:
                 lines.append(f"    run {r['run_id']}: {r['family']}, {r['wagons']} wagons, "
                              f"{r['speed_kmh']:.1f} km/h, draft {r['peak_draft_kN']:.0f} kN "
                              f"@{r['peak_draft_coupler']}, buff {r['peak_buff_kN']:.0f} kN "
-                             f"@{r['peak_buff_coupler']}, adhesion "
+                             f"@{r['peak_buff_coupler']}, adhesion above 30 km/h "
                              f"{r['max_adhesion_demand']:.3f}")
         if any(sec["worst"].values()):
             lines.append(f"  recordings of the worst runs: ltd-brake campaign rerun "
