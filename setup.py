@@ -34,6 +34,8 @@ setup(
         "mcap>=1.6,<2",  # recording: MCAP records, reading
         "zstandard>=0.22",  # recording: zstd chunks
         "lz4>=4.3",  # recording: lz4 chunks
+        "pandas>=2.1",  # the Python API: time series and campaign results as DataFrames
+        "xarray>=2024.1",  # the Python API: time series as Datasets
     ],
     extras_require={
         # the ROS 2 Jazzy wheels the nodes need (sim_node, replay_node); a ROS install gets
@@ -46,8 +48,8 @@ setup(
         ],
         # ltd-brake campaign: Dask distributed executor and Parquet results
         "campaign": ["dask[distributed]>=2024.1", "pyarrow>=14"],
-        # the Python API's time series as pandas DataFrames and xarray Datasets, Parquet files
-        "analysis": ["pandas>=2.1", "xarray>=2024.1", "pyarrow>=14"],
+        # the Python API's time series as Parquet files
+        "analysis": ["pyarrow>=14"],
         # the documentation site (mkdocs build)
         "docs": ["mkdocs>=1.6", "mkdocs-material>=9.5", "mkdocstrings>=0.25",
                  "mkdocstrings-python>=1.10"],

@@ -6,9 +6,8 @@ says otherwise; vehicle 0 is the head; coupler j joins vehicles j - 1 and j; cou
 positive in draft (tension), negative in buff; brake forces are retarding forces, positive.
 
 Time series come as :class:`TimeSeries`: NumPy arrays, a tidy pandas DataFrame
-(:meth:`TimeSeries.to_dataframe`) and an xarray Dataset (:meth:`TimeSeries.to_xarray`). pandas
-and xarray are optional: ``pip install 'ltd_brake_ros[analysis]'`` installs them (and pyarrow,
-for Parquet files).
+(:meth:`TimeSeries.to_dataframe`) and an xarray Dataset (:meth:`TimeSeries.to_xarray`); Parquet
+files need pyarrow (``pip install 'ltd_brake_ros[analysis]'``).
 
 Example
 -------
@@ -227,7 +226,7 @@ class TimeSeries:
         Raises
         ------
         ImportError
-            pandas is not installed (``pip install 'ltd_brake_ros[analysis]'``).
+            pandas is not installed (a dependency of the package: reinstall it).
         """
         pd = _optional("pandas")
         if element is None:
@@ -263,7 +262,7 @@ class TimeSeries:
         Raises
         ------
         ImportError
-            xarray is not installed (``pip install 'ltd_brake_ros[analysis]'``).
+            xarray is not installed (a dependency of the package: reinstall it).
         """
         xr = _optional("xarray")
         n = self.n_vehicles
@@ -330,8 +329,8 @@ def _optional(name: str):
     try:
         return __import__(name)
     except ImportError:
-        raise ImportError(f"{name} is not installed: pip install 'ltd_brake_ros[analysis]' "
-                          f"(pandas, xarray, pyarrow)") from None
+        raise ImportError(f"{name} is not installed: pip install pandas xarray (both are "
+                          "dependencies of ltd_brake_ros: reinstall it)") from None
 
 
 class _Sampler:
