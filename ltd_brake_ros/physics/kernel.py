@@ -365,6 +365,7 @@ class _Step(NamedTuple):
     rcurve: np.ndarray
     resist: float
     v_stick: float
+    hold: np.ndarray  # standstill holding capacity of each vehicle at rest, else 0 [N]
 
 
 class _Work(NamedTuple):
@@ -524,6 +525,7 @@ def _residual(u, s, cp, fr_arrays, w):
     # bundle fields bound once: the loops below then touch plain arrays only
     xhat, vhat, bh, fx, meff, tol = s.xhat, s.vhat, s.bh[0], s.fx, s.meff, s.tol
     res_a, fa_scale, rcurve, resist, v_stick = s.res_a, s.fa_scale, s.rcurve, s.resist, s.v_stick
+    hold = s.hold
     kind = fr_arrays.kind
     model, table, coef = cp.model, cp.table, cp.coef
     g, diag, cj, fc, fair = w.g, w.diag, w.cj, w.fc, w.fair
@@ -547,7 +549,19 @@ def _residual(u, s, cp, fr_arrays, w):
         spd = abs(u[i])
         fa, fr, dr = _retarding(i, spd, res_a, rcurve, resist, kind, fa_scale)
         total = fa + fr
-        if spd > v_stick:
+        if hold[i] > total:
+            # at rest at the step's start and held beyond the kinetic force: the force grows
+            # linearly to the holding capacity across the standstill band and stays there
+            # beyond it (monotone: the vehicle breaks away only if the step needs more)
+            if spd > v_stick:
+                g[i] = g0 + (hold[i] if u[i] > 0.0 else -hold[i])
+                diag[i] = meff[i] * inv_bh
+                fair[i] = fa
+            else:
+                g[i] = g0 + hold[i] * u[i] / v_stick
+                diag[i] = meff[i] * inv_bh + hold[i] / v_stick
+                fair[i] = fa * spd / v_stick
+        elif spd > v_stick:
             sg = 1.0 if u[i] > 0.0 else -1.0
             g[i] = g0 + sg * total
             diag[i] = meff[i] * inv_bh + dr
@@ -948,7 +962,7 @@ def _refine(lo, hi, h, tc, hs, hp, first_factor, model, state, ws, s, u, options
                                   fr.mu_disc[a:b + 1], fr.force_max_N[a:b + 1],
                                   fr.full_scale_N[a:b + 1])
     step = _Step(wxhat, wvhat, loc.bh, wfx, wmeff, wtol, s.res_a[a:b + 1], s.fa_scale[a:b + 1],
-                 s.rcurve[a:b + 1], s.resist, s.v_stick)
+                 s.rcurve[a:b + 1], s.resist, s.v_stick, s.hold[a:b + 1])
     wfc = work.fc
     for k in range(m):
         g = a + k
@@ -1280,7 +1294,7 @@ def new_workspace(model, state, brake_state, options):
                      np.zeros(nc, np.int64)),
                np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc),
                np.empty(nc), np.empty(nc), np.zeros(1), np.empty(n), np.zeros((n, 2), np.int64),
-               np.empty(n)))
+               np.empty(n)), np.zeros(n))
 
 
 @jit_step
@@ -1352,6 +1366,7 @@ class _Workspace(NamedTuple):
     save_extra: np.ndarray
     save_ftr: np.ndarray
     local: "_Local"
+    hold: np.ndarray
 
 
 @jit_step
@@ -1405,8 +1420,10 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
     save_next, save_extra, save_ftr = ws.save_next, ws.save_extra, ws.save_ftr
     lvl, lkind, nxt, extra = (brake_state.level, brake_state.level_kind, brake_state.next_event,
                               brake_state.extra)
+    hold = ws.hold
+    fmax = fr_arrays.force_max_N
     s = _Step(xhat, vhat, bh_step, fx, train.meff_kg, tol, res_a, fa_scale, rcurve,
-              train.resist, v_stick)
+              train.resist, v_stick, hold)
     retried = False  # the step being tried follows a rejection
     local = adaptive and options.local_steps and n >= LOCAL_MIN_VEHICLES
     # on a track of one section every vehicle's gradient and curve forces stay as they are
@@ -1438,6 +1455,9 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
             bh = beta * hs
             for i in range(n):
                 stuck0[i] = stuck[i]
+                # a vehicle at rest holds up to its standstill capacity (braked: adhesion)
+                hold[i] = friction.standstill_capacity(fb[i], fmax[i], mass[i]) if stuck[i] \
+                    else 0.0
                 xhat[i] = c1 * x[i] - c2 * xp[i]
                 vhat[i] = c1 * v[i] - c2 * vp[i]
                 u[i] = v[i] + w_ratio * (v[i] - vp[i])
