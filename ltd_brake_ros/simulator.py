@@ -925,7 +925,30 @@ class Simulator:
         k = st.kinematics
         events += [Event(t, "limit_exceeded", d) for t, d in st.watch.check(
             t0, v0, st.time_s, float(k.v_m_s[0]), k, k.v_m_s, k.brake_force_N)]
+        if st.stop_time_s is not None and self.n > 1:
+            events += [Event(t, "limit_exceeded", d) for t, d in self._holding()]
         return self.snapshot(tuple(events))
+
+    def _holding(self) -> list[tuple]:
+        """The train at rest: each vehicle's force to hold against what it holds
+        (:meth:`Watch.at_rest <ltd_brake_ros.verdicts.Watch.at_rest>`)."""
+        st, m = self._state, self.model
+        k, n = st.kinematics, self.n
+        fgrade, rcurve = np.zeros(n), np.zeros(n)
+        kernel.track_forces(k.x_m, m.train, m.track, fgrade, rcurve)
+        fc = k.coupler_force_N[: n - 1]
+        need = fgrade + self.fext_N + k.traction_force_N
+        need[:-1] -= fc  # the coupler behind pulls a vehicle back in draft
+        need[1:] += fc
+        fr = m.friction
+        scale = np.zeros(n)
+        friction.force_scales(fr.kind, fr.blocks, fr.arrangement, fr.mu_disc, st.brakes.force_N,
+                              scale)
+        # the kinetic brake force at rest (Karwatzki's speed factor 0.6 at v = 0 for blocks)
+        kinetic = np.where(fr.kind == friction.BRAKE_BLOCKS, 0.6 * scale, scale)
+        grip = np.array([friction.standstill_capacity(b, f, mass) for b, f, mass in zip(
+            st.brakes.force_N, fr.force_max_N, m.train.mass_kg)])
+        return st.watch.at_rest(st.time_s, need, np.maximum(np.maximum(kinetic, grip), 1.0))
 
     def _bind_kernel(self) -> None:
         """Compile (or load from the cache) the kernel's step loop for this train's bundles

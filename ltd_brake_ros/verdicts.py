@@ -26,6 +26,8 @@ beyond its limit (by how much, when, at what speed):
 ``adhesion_low_speed``  INFO        the largest instantaneous demand below 30 km/h (never a
                                     failure: block friction peaks as the wheels slow down;
                                     noted where it exceeds a wet rail's adhesion)
+``standstill_holding``  FAIL        after the stop, the force each vehicle must hold (coupler
+                                    forces, grade) against what its brake holds at rest
 ======================  ==========  ======================================================
 
 Adhesion demand is the air brake's retarding force over the vehicle's weight, m g; its mean
@@ -167,6 +169,8 @@ CRITERIA = {
     "adhesion_low_speed": Rule("Adhesion demand at low speed", "brake force / weight",
                                "vehicle", "-", "INFO",
                                f"braked vehicles below {ADHESION_SPEED_KMH:.0f} km/h, moving"),
+    "standstill_holding": Rule("Holding at rest", "force to hold (couplers, grade)", "vehicle",
+                               "kN", "FAIL", "every vehicle after the train has stopped"),
 }
 _DEFAULT_ORIGIN = {
     "draft_strength": "default 850 kN: screw coupling breaking load (UIC 520/826 via secondary "
@@ -183,6 +187,10 @@ _DEFAULT_ORIGIN = {
     "adhesion_low_speed": "information: a wet rail's adhesion, Curtius-Kniffler x 0.6 "
                           "(secondary sources), never a failure",
     "coupler_travel": "the coupler model's valid range",
+    "standstill_holding": "what a vehicle at rest holds: its kinetic brake force at rest, or "
+                          "with the brake applied 0.30 m g at full application (dry-rail "
+                          "adhesion at rest, secondary sources; the clamped brake assumed to "
+                          "hold the wheel)",
 }
 
 
@@ -235,7 +243,8 @@ class TrainLimits:
                 "endurable_lcf": self.endurable_lcf_N, "adhesion": self.adhesion_limit,
                 "coupler_travel": np.zeros(self.draft_strength_N.size),
                 "adhesion_at_speed": np.full(n, ADHESION_AT_SPEED_LIMIT),
-                "adhesion_low_speed": np.full(n, math.inf)}[criterion]
+                "adhesion_low_speed": np.full(n, math.inf),
+                "standstill_holding": np.full(n, math.inf)}[criterion]
 
 
 def _coupler_limit(per_vehicle: list, model_value: float, default: float):
@@ -324,7 +333,8 @@ def train_limits(consist, coupler_params=None, *, adhesion_limit: float | None =
               "adhesion": (_origin_text("adhesion", o_adh) if adhesion_limit is None else
                            "campaign file" + ("; consist limits" if "consist" in o_adh else "")),
               "adhesion_at_speed": _DEFAULT_ORIGIN["adhesion_at_speed"],
-              "adhesion_low_speed": _DEFAULT_ORIGIN["adhesion_low_speed"]}
+              "adhesion_low_speed": _DEFAULT_ORIGIN["adhesion_low_speed"],
+              "standstill_holding": _DEFAULT_ORIGIN["standstill_holding"]}
     vs = consist.vehicles
     weight = np.array([v.mass_kg for v in vs], float) * G
     braked = np.array([getattr(v.brake, "type", "none") in ("blocks", "disc") for v in vs])
@@ -447,7 +457,7 @@ def default_coupler_limits(n_vehicles: int) -> TrainLimits:
                         "endurable_lcf": _DEFAULT_ORIGIN["endurable_lcf"],
                         "coupler_travel": "not assessed: the recording holds no coupler travel",
                         "adhesion": none, "adhesion_at_speed": none,
-                        "adhesion_low_speed": none})
+                        "adhesion_low_speed": none, "standstill_holding": none})
 
 
 class SampledDemand:
@@ -806,6 +816,7 @@ class VehicleDemand:
 def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_kmh,
           peak_buff_N, peak_buff_time_s, buff_speed_kmh, demand: VehicleDemand | None = None,
           travel_beyond_mm=None, travel_time_s=None, travel_speed_kmh=None,
+          holding=None, holding_reason: str = "not assessed: the train has not stopped",
           first_time_s: dict | None = None) -> Verdicts:
     """The verdicts table from a run's per-coupler peaks and per-vehicle adhesion records.
 
@@ -823,6 +834,11 @@ def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_k
     travel_beyond_mm, travel_time_s, travel_speed_kmh : array_like, optional
         Largest excursion of each coupler beyond its travel [mm] (0: none), when, the head's
         speed then (omitted: the travel is not assessed).
+    holding : tuple of array_like, optional
+        (force to hold [N], what the vehicle holds [N], when [s]) of each vehicle at its
+        worst moment at rest after the stop (omitted: not assessed, ``holding_reason``).
+    holding_reason : str, optional
+        Why holding is not assessed when ``holding`` is omitted.
     first_time_s : dict, optional
         Criterion -> per-element time each was first seen beyond its limit [s] (-1: never;
         default: the time of the worst).
@@ -857,6 +873,15 @@ def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_k
                                first("coupler_travel", beyond.size), 1,
                                origin.get("coupler_travel", "")))
     rows += _adhesion_rows(limits, demand, first)
+    if holding is None:
+        rows.append(Criterion("standstill_holding", False, math.inf, math.inf,
+                              holding_reason if limits.adhesion_limit.size else origin.get(
+                                  "standstill_holding", "not assessed"), 0.0, 0, 0.0))
+    else:
+        need, cap, t = (np.asarray(a, float) for a in holding)
+        rows.append(_criterion("standstill_holding", need, cap, t, np.zeros(need.size),
+                               first("standstill_holding", need.size), 0,
+                               origin.get("standstill_holding", "")))
     return Verdicts(tuple(rows))
 
 
@@ -938,7 +963,8 @@ def diagnostic_values(verdicts: Verdicts) -> dict:
 
 #: Campaign flag of each FAIL criterion.
 FLAG_NAMES = {"draft_strength": "draft_ok", "buff_strength": "buff_ok",
-              "endurable_lcf": "lcf_ok", "coupler_travel": "travel_ok", "adhesion": "adhesion_ok"}
+              "endurable_lcf": "lcf_ok", "coupler_travel": "travel_ok", "adhesion": "adhesion_ok",
+              "standstill_holding": "holding_ok"}
 
 
 def flags(verdicts: Verdicts) -> dict:
@@ -952,7 +978,7 @@ def flags(verdicts: Verdicts) -> dict:
     -------
     dict of str to bool
         ``draft_ok``, ``buff_ok``, ``lcf_ok``, ``travel_ok``, ``adhesion_ok`` (the mean
-        utilised adhesion); a criterion not assessed counts as passed.
+        utilised adhesion), ``holding_ok``; a criterion not assessed counts as passed.
     """
     return {FLAG_NAMES[c.name]: c.passed is not False for c in verdicts.criteria
             if c.name in FLAG_NAMES}
@@ -1053,6 +1079,8 @@ class Watch:
         # when each vehicle's braked part ended (its speed fell below 5 km/h), and at what speed
         self._mean_end_t = np.zeros(n)
         self._mean_end_kmh = np.zeros(n)
+        # at rest after the stop: each vehicle's worst force to hold against what it holds
+        self._hold: tuple | None = None
 
     def copy(self) -> "Watch":
         """An independent copy (the limits are shared: never mutated)."""
@@ -1062,6 +1090,8 @@ class Watch:
                 v = {n: a.copy() for n, a in v.items()}
             elif isinstance(v, np.ndarray):
                 v = v.copy()
+            elif isinstance(v, tuple) and k == "_hold":
+                v = tuple(a.copy() for a in v)
             elif isinstance(v, VehicleDemand):
                 v = VehicleDemand(*(x.copy() if isinstance(x, np.ndarray) else x
                                     for x in v.__dict__.values()))
@@ -1108,6 +1138,32 @@ class Watch:
                 self._mean_end_t[fast] = t1
                 self._mean_end_kmh[fast] = np.abs(vehicle_speed_m_s[fast]) * KMH_PER_MS
         return self._events(kin) if new else []
+
+    def at_rest(self, t: float, need_N, capacity_N) -> list[tuple]:
+        """Take the train at rest into account: each vehicle's force to hold [N] (couplers,
+        grade, other external forces) against what it holds [N], at time ``t`` [s].
+
+        Returns
+        -------
+        list of (time_s, detail)
+            Vehicles first seen needing more than they hold.
+        """
+        need = np.abs(np.asarray(need_N, float))
+        cap = np.asarray(capacity_N, float)
+        if self._hold is None:
+            self._hold = (need.copy(), cap.copy(), np.full(need.size, float(t)))
+        h_need, h_cap, h_t = self._hold
+        worse = need * h_cap > h_need * cap  # need / cap grew (cap > 0 for any vehicle)
+        h_need[worse], h_cap[worse], h_t[worse] = need[worse], cap[worse], t
+        first = self.first_time_s["standstill_holding"]
+        new = (need > cap) & (first < 0.0)
+        out = []
+        for i in np.flatnonzero(new):
+            first[i] = t
+            out.append((float(t), {"criterion": "standstill_holding", "vehicle": int(i),
+                                   "force_kN": float(need[i]) / 1e3,
+                                   "limit_kN": float(cap[i]) / 1e3, "speed_kmh": 0.0}))
+        return out
 
     def start(self, speed_m_s: float) -> None:
         """The brake command came, with the head at ``speed_m_s`` [m/s]."""
@@ -1189,7 +1245,7 @@ class Watch:
                      buff_speed_kmh=self.buff_speed_kmh,
                      demand=self.demand_of(kin) if lim.adhesion_limit.size else None,
                      travel_beyond_mm=beyond, travel_time_s=np.maximum(t_beyond, 0.0),
-                     travel_speed_kmh=np.full(nc, math.nan),
+                     travel_speed_kmh=np.full(nc, math.nan), holding=self._hold,
                      first_time_s=None if other else dict(
                          self.first_time_s, coupler_travel=np.asarray(
                              kin.out_of_range_time_s[:nc], float)))

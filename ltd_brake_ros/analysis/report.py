@@ -551,6 +551,7 @@ def analyse(path, namespace: str | None = None) -> RunReport:
             demand=watch.sampled.result() if watch.limits.adhesion_limit.size else None,
             travel_beyond_mm=watch.beyond_mm if watch._x0 is not None else None,
             travel_time_s=watch.beyond_t, travel_speed_kmh=watch.beyond_kmh,
+            holding_reason="not assessed from a recording: it holds no brake state at rest",
             first_time_s=watch.first_time_s)
     return rep
 

@@ -26,7 +26,7 @@ def test_json_carries_the_verdicts_and_equals_the_emergency_stop(capsys):
     v = out["verdicts"]
     assert [c["criterion"] for c in v["criteria"]] == [
         "draft_strength", "buff_strength", "endurable_lcf", "coupler_travel", "adhesion",
-        "adhesion_at_speed", "adhesion_low_speed"]
+        "adhesion_at_speed", "adhesion_low_speed", "standstill_holding"]
     draft = v["criteria"][0]
     assert draft["status"] == "PASS" and draft["worst_kN"] == pytest.approx(ref.peak_draft_kN)
     assert draft["worst_coupler"] == ref.peak_draft_coupler

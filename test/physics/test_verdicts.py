@@ -218,10 +218,11 @@ def test_nothing_beyond_a_limit_passes_and_unset_criteria_are_not_assessed():
     table = sim.verdicts()
     assert table.passed and table.status == "PASS" and not table.non_physical
     assert [c.status for c in table.criteria] == ["PASS", "PASS", "not assessed", "PASS",
-                                                  "PASS", "PASS", "INFO"]
+                                                  "PASS", "PASS", "INFO", "PASS"]
     assert table["draft_strength"].worst_value == sim.peak_draft_N.max()
     assert verdicts.flags(table) == {"draft_ok": True, "buff_ok": True, "lcf_ok": True,
-                                     "travel_ok": True, "adhesion_ok": True}
+                                     "travel_ok": True, "adhesion_ok": True,
+                                     "holding_ok": True}
     d = table.as_dict()
     assert d["passed"] and d["criteria"][0]["worst_kN"] == pytest.approx(
         sim.peak_draft_N.max() / 1e3)
@@ -257,3 +258,22 @@ def test_a_draft_above_the_default_strength_is_always_named(wagons, mass_t):
     table = sim.verdicts(strict)["draft_strength"]
     assert {e.number: e.value for e in table.exceedances} == {
         int(j) + 1: sim.peak_draft_N[j] for j in np.flatnonzero(sim.peak_draft_N > 500e3)}
+
+
+def test_at_rest_the_force_to_hold_is_judged_against_what_the_brake_holds(scenario_6):
+    sim, _ = scenario_6
+    hold = sim.verdicts()["standstill_holding"]
+    # coupler 1 still pulls the locomotive with over 100 kN at rest: within its 0.30 m g
+    assert hold.status == "PASS" and hold.worst_number == 0
+    assert 100e3 < hold.worst_value < hold.limit_max
+    # a force beyond any vehicle's grip (1.5 MN on wagon 3, e.g. a shunting impact): FAIL
+    sc = get_scenario(1)
+    sim = Simulator(sc.consist(), sc.speed_kmh)
+    stop(sim)
+    sim.fext_N[3] = -1.5e6
+    events = sim.advance(0.5).events
+    table = sim.verdicts()
+    assert table["standstill_holding"].status == "FAIL"
+    # wagon 3 first (the force acts on it), and the wagons it pushes through their couplers
+    assert table["standstill_holding"].exceedances[0].number == 3
+    assert any(e.detail["criterion"] == "standstill_holding" for e in events)
