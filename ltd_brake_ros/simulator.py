@@ -38,6 +38,7 @@ from .inputs import BrakeParams, Consist, CouplerLUT, InputError, Track
 from .inputs.commands import COMMAND_RANGES
 from .physics import brakes as brakes_module
 from .physics import couplers, kernel
+from .physics.brakes import adhesion as adhesion_module
 from .physics.brakes import friction
 from .physics.brakes.base import EMERGENCY, OVERCHARGE, SERVICE
 from .physics.constants import KMH_PER_MS, STANDSTILL_M_S
@@ -399,7 +400,7 @@ _COMPILED_LOCK = threading.Lock()
 
 
 def _compiled(consist: Consist, params: BrakeParams, coupler, track: Track, resistance: bool,
-              brakes_on: bool) -> _Compiled:
+              brakes_on: bool, adhesion=None) -> _Compiled:
     """:meth:`Simulator._compile` and the train's limits, once per set of inputs.
 
     The inputs are immutable (a consist is known by its identity, held by the entry so that
@@ -407,7 +408,7 @@ def _compiled(consist: Consist, params: BrakeParams, coupler, track: Track, resi
     only reads it. A simulator built again from the same loaded files (input files are read
     once per version) takes the train compiled before.
     """
-    key = (id(consist), params, coupler, track, resistance, brakes_on)
+    key = (id(consist), params, coupler, track, resistance, brakes_on, adhesion)
     try:
         with _COMPILED_LOCK:
             hit = _COMPILED.pop(key, None)
@@ -416,7 +417,7 @@ def _compiled(consist: Consist, params: BrakeParams, coupler, track: Track, resi
                 return hit
     except TypeError:  # an input that is not hashable: compiled every time
         key = None
-    model = Simulator._compile(consist, params, coupler, track, resistance, brakes_on)
+    model = Simulator._compile(consist, params, coupler, track, resistance, brakes_on, adhesion)
     hit = _Compiled(consist, model, train_limits(consist, coupler,
                                                  friction_arrays=model.friction,
                                                  coupler_arrays=model.couplers))
@@ -474,6 +475,11 @@ class Simulator:
         Half-width of the standstill band [m/s]: brake and running resistance reach their full
         value at this speed and hold a stopped vehicle against any smaller force; it creeps at
         most at this speed times (force / holding force).
+    adhesion : str, float or AdhesionCondition, optional
+        The rail's adhesion condition for wheel slide (:mod:`.physics.brakes.adhesion`:
+        ``dry``, ``wet``, a number, or a curve from
+        :func:`~ltd_brake_ros.inputs.adhesion.load_adhesion`); default: off, the brake force
+        is never capped, as in the paper's method.
 
     Attributes
     ----------
@@ -496,7 +502,7 @@ class Simulator:
                  newton_rtol: float = kernel.DEFAULT_NEWTON_RTOL,
                  standstill_m_s: float = STANDSTILL_M_S, stick_band_m_s: float = 1e-5,
                  tolerance_m_s: float | None = kernel.DEFAULT_TOLERANCE_M_S,
-                 local_steps: bool = True):
+                 local_steps: bool = True, adhesion=None):
         if lut is None:
             from .inputs import load_coupler_lut
 
@@ -521,8 +527,12 @@ class Simulator:
         self.standstill_m_s = float(standstill_m_s)
         self.stick_band_m_s = float(stick_band_m_s)
         self._brakes = bool(brakes)
+        try:
+            self.adhesion = adhesion_module.condition(adhesion)
+        except ValueError as exc:
+            raise InputError("adhesion", "", str(exc)) from None
         compiled = self._compiled = _compiled(consist, params, lut, self.track,
-                                              bool(resistance), self._brakes)
+                                              bool(resistance), self._brakes, self.adhesion)
         self.model = compiled.model
         self._brake_model = brakes_module.model_of(params.pneumatic)
         self._options = kernel.Options(self.max_newton_iter, self.newton_rtol,
@@ -543,7 +553,7 @@ class Simulator:
 
     @staticmethod
     def _compile(consist: Consist, params: BrakeParams, coupler, track: Track, resistance: bool,
-                 brakes_on: bool) -> kernel.TrainModel:
+                 brakes_on: bool, adhesion=None) -> kernel.TrainModel:
         vs = consist.vehicles
         n = len(vs)
         mass = np.array([v.mass_kg for v in vs])
@@ -552,7 +562,7 @@ class Simulator:
                                    np.array([float(v.axles) for v in vs]),
                                    centre_offsets_m(length), 1.0 if resistance else 0.0)
         try:
-            fr = friction.compile(consist, params.friction)
+            fr = friction.compile(consist, params.friction, adhesion)
         except brakes_module.CompileError as exc:
             raise InputError(consist.source, exc.field, exc.reason) from None
         brake_model = brakes_module.model_of(params.pneumatic)
@@ -753,7 +763,7 @@ class Simulator:
         """
         return self._state.watch.verdicts(self._state.kinematics, limits)
 
-    def adhesion(self) -> VehicleDemand:
+    def adhesion_records(self) -> VehicleDemand:
         """Each vehicle's adhesion records since the last reset: mean utilised adhesion over
         the braked part of the stop, largest demand above and below 30 km/h
         (:class:`~ltd_brake_ros.verdicts.VehicleDemand`).
@@ -763,6 +773,20 @@ class Simulator:
         VehicleDemand
         """
         return self._state.watch.demand_of(self._state.kinematics)
+
+    def wheel_slides(self) -> list[dict]:
+        """Vehicles whose wheels slid since the last reset (with an adhesion condition).
+
+        Returns
+        -------
+        list of dict
+            Per vehicle that slid, head first: ``vehicle`` (0 at the head), ``first_s`` (when
+            it first slid [s]) and ``duration_s`` (how long in all [s]).
+        """
+        k = self._state.kinematics
+        return [{"vehicle": int(i), "first_s": float(k.slide_first_s[i]),
+                 "duration_s": float(k.slide_time_s[i])}
+                for i in np.flatnonzero(k.slide_first_s[: self.n] >= 0.0)]
 
     def braked_weight_percent(self) -> float:
         """Train braked-weight percentage lambda_train, Eq. 11 [%]."""

@@ -29,6 +29,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         f"a sim_node recording, a state every {RECORD_CHUNK_S:g} s (the "
                         "emergency stop is then advanced in chunks of that length); "
                         "ltd-brake report DIR analyses it")
+    p.add_argument("--adhesion", metavar="COND",
+                   help="model wheel slide: cap each vehicle's brake force at the rail's "
+                        "adhesion mu(v) m g, the wheels sliding beyond it: dry (Curtius-Kniffler "
+                        "7.5/(V+44)+0.161), wet (0.6 x dry), a number (constant mu), or a YAML "
+                        "file with speed_kmh, mu and source lists; default: off, as in the "
+                        "paper's method")
     p.add_argument("--timeseries", metavar="FILE",
                    help="write every vehicle's and coupler's history, a sample every "
                         f"{RECORD_CHUNK_S:g} s, to FILE in long (tidy) form: time_s, element "
@@ -36,6 +42,23 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "pyarrow) or .csv by the suffix; an existing FILE is refused")
     p.set_defaults(func=run)
     return p
+
+
+def _adhesion(args: argparse.Namespace):
+    """The ``--adhesion`` condition (None: off), a file read and checked here."""
+    spec = getattr(args, "adhesion", None)
+    if spec is None:
+        return None
+    from ..inputs import InputError
+    from ..inputs.adhesion import load_adhesion
+    from ..physics.brakes import adhesion
+
+    try:
+        return adhesion.condition(spec)
+    except ValueError as exc:
+        if spec.strip().lower().endswith((".yaml", ".yml")):
+            return load_adhesion(spec)
+        raise InputError("command line", "--adhesion", str(exc)) from None
 
 
 def _timeseries(args: argparse.Namespace):
@@ -116,6 +139,7 @@ def run(args: argparse.Namespace) -> int:
         start = time.perf_counter()  # the run and its recording, not opening the folder
         # chunk by chunk (no grouping): the verdicts and events sample the chunks' ends
         sim = emergency_run(spec.consist, spec.speed_kmh, params, lut, spec.track,
+                            adhesion=_adhesion(args),
                             step_s=args.step_s, tolerance_m_s=tolerance(args),
                             chunk_s=_chunk(rec, sampler, CHUNK_S), max_time_s=MAX_TIME_S,
                             on_chunk=_on_chunk(rec, sampler, events), progress=progress)
@@ -134,6 +158,8 @@ def run(args: argparse.Namespace) -> int:
         out["limits_exceeded"] = _limit_events(events)
         out["verdicts"] = verdicts.as_dict()
         out["non_physical"] = verdicts.non_physical
+        out["adhesion"] = sim.adhesion.name
+        out["wheel_slides"] = sim.wheel_slides()
         print(json_by_key(out))
         return 0
     print(f"train            {res.consist}: {res.vehicles} vehicles, {res.train_length_m:.1f} m, "
@@ -151,6 +177,7 @@ def run(args: argparse.Namespace) -> int:
           f"(t = {res.peak_buff_time_s:.2f} s)")
     if res.out_of_range.count:
         print(f"warning          {res.out_of_range.describe()}")
+    _print_slides(sim)
     _print_verdicts(verdicts)
     print(f"cost             {res.wall_time_s * 1e3:.0f} ms wall, {res.real_time_factor:.0f}x "
           f"real time, {res.steps} steps ({res.rejected_steps} rejected, shortest "
@@ -182,7 +209,8 @@ def _run_script(args: argparse.Namespace, spec) -> int:
     with _Progress() as progress, _Recording(args, spec, script) as rec:
         start = time.perf_counter()  # the run and its recording, not opening the folder
         sim = scripted_run(spec.consist, spec.speed_kmh, script, spec.params, spec.lut,
-                           spec.track, step_s=args.step_s, tolerance_m_s=tolerance(args),
+                           spec.track, adhesion=_adhesion(args),
+                           step_s=args.step_s, tolerance_m_s=tolerance(args),
                            chunk_s=_chunk(rec, sampler, RECORD_CHUNK_S),
                            on_chunk=_on_chunk(rec, sampler, events), progress=progress)
     wall = time.perf_counter() - start
@@ -203,6 +231,7 @@ def _run_script(args: argparse.Namespace, spec) -> int:
         "events": [dict(e.detail, kind=e.kind, time_s=e.time_s) for e in events],
         "wall_time_s": wall, "real_time_factor": sim.time_s / wall if wall > 0 else None,
         "verdicts": sim.verdicts().as_dict(),
+        "adhesion": sim.adhesion.name, "wheel_slides": sim.wheel_slides(),
     }
     if args.json:
         print(json_by_key(out))
@@ -223,6 +252,7 @@ def _run_script(args: argparse.Namespace, spec) -> int:
         print(f"warning          {beyond.describe()}")
     print(f"peak draft       {out['peak_draft_kN']:.1f} kN at coupler {peaks.draft_coupler}")
     print(f"peak buff        {out['peak_buff_kN']:.1f} kN at coupler {peaks.buff_coupler}")
+    _print_slides(sim)
     _print_verdicts(sim.verdicts())
     print(f"cost             {wall * 1e3:.0f} ms wall, {out['real_time_factor']:.0f}x real time")
     return 0
@@ -231,6 +261,20 @@ def _run_script(args: argparse.Namespace, spec) -> int:
 def _limit_events(events) -> list[dict]:
     """The ``limit_exceeded`` events of a run, as JSON."""
     return [dict(e.detail, time_s=e.time_s) for e in events if e.kind == "limit_exceeded"]
+
+
+def _print_slides(sim) -> None:
+    """One line on wheel slide when an adhesion condition is set."""
+    if not sim.adhesion.on:
+        return
+    slides = sim.wheel_slides()
+    text = f"wheel slide      adhesion {sim.adhesion.name} ({sim.adhesion.source}): "
+    if not slides:
+        print(text + "no wheel slid")
+        return
+    worst = max(slides, key=lambda s: s["duration_s"])
+    print(text + f"{len(slides)} vehicles slid, longest vehicle {worst['vehicle']} for "
+          f"{worst['duration_s']:.2f} s from t = {worst['first_s']:.2f} s")
 
 
 def _print_verdicts(verdicts) -> None:

@@ -48,7 +48,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import brakes, couplers
-from .brakes import friction
+from .brakes import adhesion, friction
 from .constants import KMH_PER_MS
 from .equations import (HAVE_NUMBA, jit, jit_inline, jit_step, lut_segment,
                         resistance_coefficients)
@@ -195,6 +195,9 @@ class KinematicState(NamedTuple):
         :data:`ADHESION_SPLIT_SPEED_M_S` [N], when [s] and at what speed [m/s].
     peak_brake_slow_N, peak_brake_slow_time_s, peak_brake_slow_speed_m_s : ndarray
         The same while slower, still moving forward (faster than the standstill speed).
+    slide_time_s, slide_first_s : ndarray
+        How long each vehicle's wheels slid in all [s] (brake force capped by the rail's
+        adhesion, :mod:`.brakes.adhesion`) and when they first did [s] (-1: never).
     applied_work_J, applied_distance_m : ndarray
         Work of each vehicle's brake at the rails [J] (less what decelerated its rotating
         masses) and the distance it ran [m] while its brake was fully
@@ -233,6 +236,8 @@ class KinematicState(NamedTuple):
     peak_brake_slow_N: np.ndarray
     peak_brake_slow_time_s: np.ndarray
     peak_brake_slow_speed_m_s: np.ndarray
+    slide_time_s: np.ndarray
+    slide_first_s: np.ndarray
 
     @classmethod
     def initial(cls, n: int, speed_m_s: float) -> "KinematicState":
@@ -243,7 +248,7 @@ class KinematicState(NamedTuple):
                    np.zeros(nc), np.zeros(n), np.zeros(nc), np.zeros(nc), np.zeros(nc),
                    np.zeros(nc), np.zeros(nc), np.full(nc, -1.0), np.full(nc, -1.0),
                    np.zeros(n), np.zeros(3), np.zeros(n), np.zeros(n),
-                   *(np.zeros(n) for _ in range(6)))
+                   *(np.zeros(n) for _ in range(6)), np.zeros(n), np.full(n, -1.0))
 
     def copy(self) -> "KinematicState":
         """An independent copy."""
@@ -449,16 +454,22 @@ def track_forces(x, train, track, fgrade, rcurve):
 
 
 @jit_inline
-def _retarding(i, speed, res_a, rcurve, resist, kind, fa_scale):
+def _retarding(i, speed, res_a, rcurve, resist, kind, fa_scale, adh, weight):
     """Brake force, running + curve resistance (magnitudes, N) and d(total)/d(speed).
 
     ``res_a`` holds the Eq. 2 coefficients per vehicle; ``fa_scale`` the brake force per unit
-    of Karwatzki's speed factor (blocks) or the disc brake force, fixed within a step.
+    of Karwatzki's speed factor (blocks) or the disc brake force, fixed within a step; ``adh``
+    the rail's adhesion table (empty: no cap), which caps the brake force at mu(v) m g
+    (``weight``: m g) when the wheels would slide.
     """
     v_kmh = KMH_PER_MS * speed
     fr = (res_a[i, 0] + (res_a[i, 1] + res_a[i, 2] * v_kmh) * v_kmh + rcurve[i]) * resist
     dfr = (res_a[i, 1] + 2.0 * res_a[i, 2] * v_kmh) * KMH_PER_MS * resist
     fa, dfa = friction.retarding_force(kind[i], speed, fa_scale[i])
+    if adh.shape[1] > 0 and fa > 0.0:
+        mu, dmu = adhesion.mu_of(adh, speed)
+        if fa > mu * weight[i]:  # the wheels slide: sliding friction, the available adhesion
+            fa, dfa = mu * weight[i], dmu * weight[i]
     return fa, fr, dfa + dfr
 
 
@@ -526,7 +537,7 @@ def _residual(u, s, cp, fr_arrays, w):
     xhat, vhat, bh, fx, meff, tol = s.xhat, s.vhat, s.bh[0], s.fx, s.meff, s.tol
     res_a, fa_scale, rcurve, resist, v_stick = s.res_a, s.fa_scale, s.rcurve, s.resist, s.v_stick
     hold = s.hold
-    kind = fr_arrays.kind
+    kind, adh, weight = fr_arrays.kind, fr_arrays.adhesion, fr_arrays.weight_N
     model, table, coef = cp.model, cp.table, cp.coef
     g, diag, cj, fc, fair = w.g, w.diag, w.cj, w.fc, w.fair
     seg = w.segment
@@ -547,7 +558,7 @@ def _residual(u, s, cp, fr_arrays, w):
         if i > 0:
             g0 -= fc[i - 1]
         spd = abs(u[i])
-        fa, fr, dr = _retarding(i, spd, res_a, rcurve, resist, kind, fa_scale)
+        fa, fr, dr = _retarding(i, spd, res_a, rcurve, resist, kind, fa_scale, adh, weight)
         total = fa + fr
         if hold[i] > total:
             # at rest at the step's start and held beyond the kinetic force: the force grows
@@ -960,7 +971,7 @@ def _refine(lo, hi, h, tc, hs, hp, first_factor, model, state, ws, s, u, options
                              tr.fair[a:b + 1], tr.segment[a:b]))
     frw = friction.FrictionArrays(fr.kind[a:b + 1], fr.blocks[a:b + 1], fr.arrangement[a:b + 1],
                                   fr.mu_disc[a:b + 1], fr.force_max_N[a:b + 1],
-                                  fr.full_scale_N[a:b + 1])
+                                  fr.full_scale_N[a:b + 1], fr.weight_N[a:b + 1], fr.adhesion)
     step = _Step(wxhat, wvhat, loc.bh, wfx, wmeff, wtol, s.res_a[a:b + 1], s.fa_scale[a:b + 1],
                  s.rcurve[a:b + 1], s.resist, s.v_stick, s.hold[a:b + 1])
     wfc = work.fc
@@ -1413,6 +1424,9 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
                                      state.peak_brake_fast_speed_m_s)
     pk_slow, pk_slow_t, pk_slow_v = (state.peak_brake_slow_N, state.peak_brake_slow_time_s,
                                      state.peak_brake_slow_speed_m_s)
+    adh, weight = fr_arrays.adhesion, fr_arrays.weight_N
+    slide_on = adh.shape[1] > 0
+    slide_t, slide_first = state.slide_time_s, state.slide_first_s
     xlo = cp.valid_lo_m
     xhi = cp.valid_hi_m
     # what a rejected step undoes: the brake model's state and the applied traction
@@ -1526,6 +1540,12 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
                 x[i] = xhat[i] + bh * u[i]
                 v[i] = u[i]
                 fbrake[i] = fair[i]
+                if slide_on and u[i] > v_stick and fair[i] > 0.0:
+                    mu, _dmu = adhesion.mu_of(adh, u[i])
+                    if fair[i] >= mu * weight[i] * (1.0 - 1e-12):  # capped: sliding
+                        slide_t[i] += hs
+                        if slide_first[i] < 0.0:
+                            slide_first[i] = tc - hs
                 # the brake force's peaks while moving, apart above and below 30 km/h
                 if u[i] > ADHESION_SPLIT_SPEED_M_S:
                     if fair[i] > pk_fast[i]:

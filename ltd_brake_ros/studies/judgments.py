@@ -28,7 +28,7 @@ def _scenario_6(params, lut) -> tuple[str, bool, str]:
     sc = get_scenario(6)
     sim = emergency_run(sc.consist(), sc.speed_kmh, params, lut)
     table = sim.verdicts()
-    mean = sim.adhesion().mean[1:]
+    mean = sim.adhesion_records().mean[1:]
     lo, hi = SCENARIO_6_MEAN
     bad = [c.name for c in table.criteria if c.status in ("FAIL", "WARN")]
     ok = not bad and bool(np.all((lo <= mean) & (mean <= hi)))

@@ -142,7 +142,8 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
                   step_s: float = 0.01, tolerance_m_s: float | None = DEFAULT_TOLERANCE_M_S,
                   chunk_s: float = 1.0, max_time_s: float = 600.0, group: bool = False,
                   on_chunk: Callable[[Snapshot], None] | None = None,
-                  progress: Callable[[Progress], None] | None = None) -> Simulator:
+                  progress: Callable[[Progress], None] | None = None,
+                  adhesion=None) -> Simulator:
     """An emergency stop: the brake applied at t = 0, chunks of ``chunk_s`` to the stop.
 
     The one loop of an emergency stop (:func:`emergency_stop`, ``ltd-brake simulate``,
@@ -182,6 +183,9 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
         Called with the :class:`~ltd_brake_ros.simulator.Snapshot` of each call.
     progress : callable, optional
         Called with a :class:`Progress` after each call (``fraction`` None).
+    adhesion : optional
+        The rail's adhesion condition for wheel slide (see
+        :class:`~ltd_brake_ros.simulator.Simulator`; default: off).
 
     Returns
     -------
@@ -194,7 +198,7 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
         A step failed, or the train had not stopped after ``max_time_s``.
     """
     sim = Simulator(consist, speed_kmh, params or load_brake_params(), lut or load_coupler_lut(),
-                    track, step_s=step_s, tolerance_m_s=tolerance_m_s)
+                    track, step_s=step_s, tolerance_m_s=tolerance_m_s, adhesion=adhesion)
     start = time.perf_counter()
     commands: Commands | None = Commands(emergency=True)
     if group:
@@ -238,7 +242,8 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
                  track: Track | None = None, *, step_s: float = 0.01,
                  tolerance_m_s: float | None = DEFAULT_TOLERANCE_M_S, chunk_s: float = 0.1,
                  max_time_s: float = 3600.0, on_chunk: Callable[[Snapshot], None] | None = None,
-                 progress: Callable[[Progress], None] | None = None) -> Simulator:
+                 progress: Callable[[Progress], None] | None = None,
+                 adhesion=None) -> Simulator:
     """Run a train under a timed command script.
 
     The inputs change at chunk boundaries (every ``chunk_s``), as they would when a controller
@@ -260,6 +265,8 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
         Upper bound when the script has no duration and the train does not stop [s].
     on_chunk : callable, optional
         Called with each :class:`~ltd_brake_ros.simulator.Snapshot`.
+    adhesion : optional
+        The rail's adhesion condition for wheel slide (default: off).
     progress : callable, optional
         Called with a :class:`Progress` after each chunk (``fraction`` of the script's
         duration; None without one).
@@ -270,7 +277,7 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
         The simulator at the end of the run (its counters, peaks and events describe it).
     """
     sim = Simulator(consist, speed_kmh, params or load_brake_params(), lut or load_coupler_lut(),
-                    track, step_s=step_s, tolerance_m_s=tolerance_m_s)
+                    track, step_s=step_s, tolerance_m_s=tolerance_m_s, adhesion=adhesion)
     end = script.duration_s if script.duration_s is not None else max_time_s
     state: dict = {}
     k = 0

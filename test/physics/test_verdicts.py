@@ -133,7 +133,7 @@ def test_mean_adhesion_of_the_paper_train_passes_and_lies_within_its_friction_bo
     table = sim.verdicts()
     v = table["adhesion"]
     assert v.assessed and v.status == "PASS" and table.status == "PASS"
-    d = sim.adhesion()
+    d = sim.adhesion_records()
     fr, rho = sim.model.friction, np.array([x.inertia_factor for x in sim.consist.vehicles])
     w = sim.mass_kg * G
     wagons = slice(1, None)
@@ -173,7 +173,7 @@ def test_instantaneous_demand_warns_at_speed_and_is_information_below_30_kmh(sce
     sim, _ = scenario_6
     table = sim.verdicts()
     at, low = table["adhesion_at_speed"], table["adhesion_low_speed"]
-    d = sim.adhesion()
+    d = sim.adhesion_records()
     assert at.assessed and np.all(d.at_speed_kmh[d.at_speed_time_s > 0] > 30.0)
     # below 30 km/h: the largest demand is shown, never a failure, never taken at rest
     assert low.status == "INFO" and low.passed is True and low.worst_value > 0.15

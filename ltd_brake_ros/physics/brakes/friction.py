@@ -16,6 +16,7 @@ import numpy as np
 from ..constants import G, KMH_PER_MS
 from ..equations import jit, jit_inline, jit_vector
 from ..parameters import Fittable, parameter
+from . import adhesion as adhesion_module
 from .base import CompileError
 
 #: Brake kinds in the compiled arrays.
@@ -84,6 +85,11 @@ class FrictionArrays(NamedTuple):
         :func:`force_scale` at the full block force: the retarding force per unit of
         Karwatzki's speed factor (blocks) or the disc brake force of a fully applied brake [N]
         (0 where there is no brake).
+    weight_N : ndarray
+        m g of each vehicle [N].
+    adhesion : ndarray, shape (2, k)
+        The rail's available adhesion, speed [m/s] and mu [-] (:mod:`.adhesion`); k = 0: the
+        brake force is not capped (no wheel slide).
     """
 
     kind: np.ndarray
@@ -92,9 +98,11 @@ class FrictionArrays(NamedTuple):
     mu_disc: np.ndarray
     force_max_N: np.ndarray
     full_scale_N: np.ndarray
+    weight_N: np.ndarray
+    adhesion: np.ndarray
 
 
-def compile(consist, params: Params) -> FrictionArrays:  # noqa: A001 - the contract's name
+def compile(consist, params: Params, adhesion=None) -> FrictionArrays:  # noqa: A001
     """Per-vehicle friction arrays of a train.
 
     Parameters
@@ -104,6 +112,8 @@ def compile(consist, params: Params) -> FrictionArrays:  # noqa: A001 - the cont
         brake (``type == "disc"``) or ``None``.
     params : Params
         k-factor scale and the locomotives' defaults.
+    adhesion : AdhesionCondition, optional
+        The rail's adhesion condition (:mod:`.adhesion`; default: off, no wheel slide).
 
     Returns
     -------
@@ -140,7 +150,10 @@ def compile(consist, params: Params) -> FrictionArrays:  # noqa: A001 - the cont
             force_max[i] = 1000.0 * v.braked_weight_t * 9.81 / k
     full_scale = np.array([force_scale(kind[i], blocks[i], arrangement[i], mu_disc[i],
                                        force_max[i]) for i in range(n)], float)
-    return FrictionArrays(kind, blocks, arrangement, mu_disc, force_max, full_scale)
+    weight = np.array([v.mass_kg for v in consist.vehicles], float) * G
+    table = (adhesion if adhesion is not None else adhesion_module.OFF).table
+    return FrictionArrays(kind, blocks, arrangement, mu_disc, force_max, full_scale, weight,
+                          np.ascontiguousarray(table, dtype=float))
 
 
 @jit_inline

@@ -1,0 +1,46 @@
+"""Adhesion curve files: the rail's available adhesion against speed, with its source."""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from ..physics.brakes.adhesion import AdhesionCondition
+from .schema import Fields, load_yaml, resolve_config_path
+
+__all__ = ["load_adhesion"]
+
+
+def load_adhesion(path: str | os.PathLike) -> AdhesionCondition:
+    """Load an adhesion curve: ``speed_kmh`` (strictly increasing, from 0), ``mu`` (each in
+    (0, 1]) and ``source`` (where the values come from; required).
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    AdhesionCondition
+
+    Raises
+    ------
+    InputError
+        Naming the file, the field and the reason.
+    """
+    p = resolve_config_path(path)
+    f = Fields(load_yaml(p), str(p))
+    f.reject_unknown({"name", "description", "source", "speed_kmh", "mu"})
+    speeds = f.numbers("speed_kmh")
+    mu = f.numbers("mu")
+    if len(speeds) < 1 or len(speeds) != len(mu):
+        raise f.error("mu", f"give one value per speed ({len(speeds)} speeds, {len(mu)} values)")
+    if speeds[0] < 0.0 or any(b <= a for a, b in zip(speeds, speeds[1:])):
+        raise f.error("speed_kmh", "must start at 0 or above and increase strictly")
+    if any(not 0.0 < m <= 1.0 for m in mu):
+        raise f.error("mu", "every value must lie in (0, 1]")
+    source = f.string("source", "")
+    if not source.strip():
+        raise f.error("source", "missing: say where the curve comes from")
+    return AdhesionCondition(f.string("name", p.stem), np.array([np.array(speeds) / 3.6, mu]),
+                             source)
