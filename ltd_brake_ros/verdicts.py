@@ -324,8 +324,9 @@ def train_limits(consist, coupler_params=None, *, adhesion_limit: float | None =
         o_travel = (f"buffers' solid end and draw gear's stroke, {travel[0]:.0f} to "
                     f"{travel[1]:.0f} mm (beyond: the body's stiffness, forces not physical)"
                     if end is not None else
-                    f"the coupler table's range, {travel[0]:.0f} to {travel[1]:.0f} mm (beyond: "
-                    "the curves extrapolated, forces not physical)")
+                    f"the coupler characteristic's valid range, {travel[0]:.0f} to "
+                    f"{travel[1]:.0f} mm (beyond: the buffers solid or the curves "
+                    "extrapolated, forces not physical)")
     origin = {"draft_strength": _origin_text("draft_strength", o_draft),
               "buff_strength": _origin_text("buff_strength", o_buff),
               "endurable_lcf": _origin_text("endurable_lcf", o_lcf),

@@ -13,7 +13,7 @@ import pytest
 
 from ltd_brake_ros.inputs import consist_from_mapping, load_coupler_lut
 from ltd_brake_ros.physics import couplers
-from ltd_brake_ros.physics.couplers import linear
+from ltd_brake_ros.physics.couplers import buffer_draw_gear, linear
 from ltd_brake_ros.physics.parameters import CompileError, Fittable, specs
 from ltd_brake_ros.simulator import Commands, Simulator
 
@@ -23,6 +23,8 @@ EXAMPLES = {
     # draw gear of 20 kN/mm with 10 mm slack either way, lightly damped
     "linear": linear.Params(stiffness_N_m=2e7, damping_N_s_m=2e5, slack_m=0.01, travel_m=0.1,
                             draft_strength_N=1.0e6, buff_strength_N=2.0e6),
+    # category A buffers and a draw gear with a solid end (the shipped assumptions)
+    "buffer_draw_gear": buffer_draw_gear.Params(draft_strength_N=1.0e6, buff_strength_N=2.0e6),
 }
 MODELS = sorted(couplers.MODELS)
 

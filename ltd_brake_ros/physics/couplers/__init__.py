@@ -47,7 +47,7 @@ from typing import Any
 from .. import parameters
 from ..equations import jit_inline
 from ..parameters import CompileError
-from . import linear, lut_hysteresis
+from . import buffer_draw_gear, linear, lut_hysteresis
 from .base import CouplerArrays
 
 __all__ = ["CompileError", "CouplerArrays", "DEFAULT_MODEL", "MODELS", "force", "force_near",
@@ -57,6 +57,7 @@ __all__ = ["CompileError", "CouplerArrays", "DEFAULT_MODEL", "MODELS", "force", 
 MODELS = {m.NAME: m for m in (
     lut_hysteresis,
     linear,
+    buffer_draw_gear,
 )}
 #: The model of a coupler file that names none.
 DEFAULT_MODEL = lut_hysteresis.NAME
@@ -68,7 +69,7 @@ def force(model, table, coef, defl_m, rate_m_s):
 
     ``model``, ``table`` and ``coef`` are the fields of the model's :class:`CouplerArrays`.
     """
-    if model == lut_hysteresis.ID:
+    if model == lut_hysteresis.ID or model == buffer_draw_gear.ID:  # both tabulated, Eq. 3
         return lut_hysteresis.force(table, coef, defl_m, rate_m_s)
     if model == linear.ID:
         return linear.force(table, coef, defl_m, rate_m_s)
@@ -89,7 +90,7 @@ def force_near(model, table, coef, defl_m, rate_m_s, segment):
     segment : int
         The segment to pass in the next call for this coupler.
     """
-    if model == lut_hysteresis.ID:
+    if model == lut_hysteresis.ID or model == buffer_draw_gear.ID:
         return lut_hysteresis.force_near(table, coef, defl_m, rate_m_s, segment)
     f, kd, kr = force(model, table, coef, defl_m, rate_m_s)
     return f, kd, kr, segment

@@ -56,6 +56,10 @@ class Params:
     draft_strength_N, buff_strength_N : float
         Largest draft and buff force the coupling withstands, magnitudes [N] (files:
         ``draft_strength_kN``, ``buff_strength_kN``; inf: unknown).
+    buff_travel_m : float
+        Buff deflection of the interface at which the buffers go solid [m] (file:
+        ``buff_travel_mm``; inf: the table's end): the valid range ends there, and a run
+        beyond it is marked non-physical.
     """
 
     deflection_m: tuple[float, ...] = parameter(
@@ -85,6 +89,10 @@ class Params:
     draft_hysteresis: float = parameter(1.0, "scale of the gap between the loading and "
                                         "unloading curves in draft (0: elastic) [-]",
                                         lo=0.0, hi=20.0)
+    buff_travel_m: float = parameter(math.inf, "buff travel of the interface before it is "
+                                     "solid, e.g. two 105 mm buffers: 210 [mm] (inf: the "
+                                     "table's end)", lo=0.0, lo_open=True, key="buff_travel_mm",
+                                     scale=1e-3)
 
 
 #: Buffers of one coupling interface that a buff deflection compresses in series (one on each
@@ -178,7 +186,8 @@ def compile(params: Params) -> CouplerArrays:  # noqa: A001 - the contract's nam
     -------
     CouplerArrays
         ``table`` from :func:`table_of`; ``coef`` entries :data:`V_TH`,
-        :data:`INV_V_TH`; the valid range is the table's.
+        :data:`INV_V_TH`; the valid range is the table's, in buff no further than
+        ``buff_travel_m``.
 
     Raises
     ------
@@ -189,7 +198,8 @@ def compile(params: Params) -> CouplerArrays:  # noqa: A001 - the contract's nam
     table = table_of(*curves(params))
     v_th = float(params.v_th_m_s)
     return CouplerArrays(ID, table, np.array([v_th, 1.0 / v_th]), v_th,
-                         float(table[DEFLECTION, 0]), float(table[DEFLECTION, -1]))
+                         max(float(table[DEFLECTION, 0]), -float(params.buff_travel_m)),
+                         float(table[DEFLECTION, -1]))
 
 
 def table_of(deflection_m, loading_N, unloading_N) -> np.ndarray:
