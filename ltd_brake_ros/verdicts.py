@@ -925,7 +925,7 @@ def _adhesion_rows(limits: TrainLimits, d: VehicleDemand | None, first) -> list[
         k = int(np.argmax(np.where(braked & seen, low, -np.inf)))
         wet = float(wet_rail_adhesion(d.low_speed_kmh[k]))
         if low[k] > wet:
-            note = (f"above a wet rail's {wet:.3f} at {d.low_speed_kmh[k]:.1f} km/h: wheel "
+            note = (f"above a wet rail's {wet:.3f} at {d.low_speed_kmh[k]:.2g} km/h: wheel "
                     "slide likely on a wet rail")
     rows.append(_criterion("adhesion_low_speed", low, np.full(n, math.inf),
                            np.asarray(d.low_speed_time_s), np.asarray(d.low_speed_kmh),

@@ -169,8 +169,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"brake command    emergency at t = {sim.command_time_s:.2f} s, "
           f"{sim.command_speed_kmh:.2f} km/h; brake pipe vented at vehicle "
           f"{spec.consist.venting_vehicle}")
-    print(f"stopping         {res.stopping_distance_m:.1f} m in {res.stop_time_s:.2f} s from "
-          "the brake command")
+    print(f"stopping         {res.stopping_distance_m:.1f} m (the head's travel), every vehicle "
+          f"at rest {res.stop_time_s:.2f} s after the brake command")
     print(f"peak draft       {res.peak_draft_kN:.1f} kN at coupler {res.peak_draft_coupler} "
           f"(t = {res.peak_draft_time_s:.2f} s)")
     print(f"peak buff        {res.peak_buff_kN:.1f} kN at coupler {res.peak_buff_coupler} "

@@ -44,7 +44,7 @@ def test_text_names_the_speed_at_the_command_and_the_verdicts(capsys):
     text = capsys.readouterr().out
     assert "brake command    emergency at t = 0.00 s, 50.00 km/h; brake pipe vented at " \
            "vehicle 0" in text
-    assert "from the brake command" in text
+    assert "(the head's travel), every vehicle at rest" in text and "after the brake command" in text
     assert "verdicts         PASS" in text
     assert "PASS  Coupler draft strength (every coupler, all speeds): limit 850 kN" in text
     # a stop from 50 km/h is below the reference speed of mean-value brake calculations
