@@ -1,6 +1,7 @@
 """ROS message types as a recording needs them: names, ``ros2msg`` definitions, type hashes.
 
-Read from the installed message packages (``share/<pkg>/msg/*.msg`` and ``*.json``), with the
+The types the plant records ship with the package (``message_definitions.json``); others are
+read from the installed message packages (``share/<pkg>/msg/*.msg`` and ``*.json``), with the
 message classes only to find nested types; nothing here needs a running ROS graph.
 """
 from __future__ import annotations
@@ -132,6 +133,25 @@ def _nested_types(msg_type: str) -> list[str]:
     return sorted(deps)
 
 
+#: The definitions and type hashes of the types the plant records, as the ROS 2 Jazzy message
+#: packages give them (``message_definitions.json`` beside this module, byte for byte: a test
+#: compares them with the installed packages), so that recording needs no ROS install.
+_SHIPPED_FILE = Path(__file__).with_name("message_definitions.json")
+_SHIPPED: dict | None = None
+
+
+def _shipped(msg_type: str) -> dict | None:
+    """The shipped definition and hash of ``msg_type`` (``pkg/msg/Type``), or None."""
+    global _SHIPPED
+    if _SHIPPED is None:
+        try:
+            _SHIPPED = json.loads(_SHIPPED_FILE.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            _SHIPPED = {}
+    pkg, ns, name = split_type(msg_type)
+    return _SHIPPED.get(f"{pkg}/{ns}/{name}")
+
+
 def message_definition(msg_type: str) -> str:
     """Full ``ros2msg`` schema text of a message type, as rosbag2 stores it in MCAP.
 
@@ -143,6 +163,23 @@ def message_definition(msg_type: str) -> str:
     ----------
     msg_type : str
         Full type name, e.g. ``std_msgs/msg/Float64MultiArray``.
+
+    Returns
+    -------
+    str
+    """
+    shipped = _shipped(msg_type)
+    if shipped is not None:
+        return shipped["definition"]
+    return installed_definition(msg_type)
+
+
+def installed_definition(msg_type: str) -> str:
+    """:func:`message_definition` read from the installed message packages (needs ROS).
+
+    Parameters
+    ----------
+    msg_type : str
 
     Returns
     -------
@@ -172,6 +209,14 @@ def type_description_hash(msg_type: str) -> str:
     -------
     str
     """
+    shipped = _shipped(msg_type)
+    if shipped is not None:
+        return shipped["type_description_hash"]
+    return installed_type_hash(msg_type)
+
+
+def installed_type_hash(msg_type: str) -> str:
+    """:func:`type_description_hash` read from the installed type description, or ``""``."""
     try:
         desc = json.loads(_interface_file(msg_type, ".json").read_text())
     except (LookupError, ValueError, OSError):
