@@ -1,18 +1,22 @@
 """ament_python package definition; also a plain pip-installable distribution."""
+import re
 from glob import glob
 
 from setuptools import find_packages, setup
 
 PACKAGE = "ltd_brake_ros"
+# the one version: ltd_brake_ros/__init__.py (package.xml repeats it; a test keeps them equal)
+with open(f"{PACKAGE}/__init__.py", encoding="utf-8") as f:
+    VERSION = re.search(r'^__version__ = "([^"]+)"', f.read(), re.M).group(1)
 
 setup(
     name=PACKAGE,
-    version="0.1.0",
+    version=VERSION,
     packages=find_packages(exclude=["test", "test.*", "benchmarks"]),
     package_data={PACKAGE: ["py.typed"], f"{PACKAGE}.recording": ["message_definitions.json"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
-        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}", ["package.xml", "LICENSE", "CHANGELOG.md"]),
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
         # ros2 launch ltd_brake_ros <file>; Foxglove and PlotJuggler layouts
         (f"share/{PACKAGE}/launch", sorted(glob("launch/*.launch.*"))),

@@ -1,6 +1,7 @@
 """Run information stored in a recording: what train, at what speed, with which settings."""
 from __future__ import annotations
 
+from .. import __version__
 from ..verdicts import limits_metadata
 
 
@@ -35,6 +36,7 @@ def run_metadata(sim, *, scenario=None, parameters: dict | None = None, **extra)
                     "braked_weight_percent": float(sim.braked_weight_percent()),
                     "composition": groups},
         "initial_speed_kmh": float(sim.speed_kmh),
+        "package_version": __version__,
         "step_s": float(sim.step_s),
         "tolerance_m_s": float(sim.tolerance_m_s or 0.0),  # 0: fixed steps
         # strength and adhesion limits the run was judged by (kN, t): the report reads them back

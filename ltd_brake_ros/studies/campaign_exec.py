@@ -196,12 +196,9 @@ def _batch_path(out: Path, b: int) -> Path:
 
 
 def _package_version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
+    from .. import __version__
 
-    try:
-        return version("ltd_brake_ros")
-    except PackageNotFoundError:
-        return "unknown"
+    return __version__
 
 
 def _prepare(c: Campaign, out: Path) -> None:

@@ -500,8 +500,8 @@ def test_colcon_build_installs_what_ros2_run_resolves(tmp_path):
     src = tmp_path / "src" / "ltd_brake_ros"
     src.mkdir(parents=True)
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc", "*.egg-info")
-    for entry in ("package.xml", "setup.py", "setup.cfg", "README.md", "LICENSE", "resource",
-                  "config", "launch", "layouts", "examples", "ltd_brake_ros"):
+    for entry in ("package.xml", "setup.py", "setup.cfg", "README.md", "LICENSE", "CHANGELOG.md",
+                  "resource", "config", "launch", "layouts", "examples", "ltd_brake_ros"):
         path = REPO / entry
         if path.is_dir():
             shutil.copytree(path, src / entry, ignore=ignore)
