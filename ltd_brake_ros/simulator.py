@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import threading
 from dataclasses import dataclass, field
 
@@ -397,6 +398,21 @@ _COMPILED: dict[tuple, _Compiled] = {}
 #: How many :data:`_COMPILED` keeps.
 _COMPILED_KEPT = 8
 _COMPILED_LOCK = threading.Lock()
+
+
+def kernels_cached() -> bool | None:
+    """Whether the compiled simulation kernels are in numba's on-disk cache already.
+
+    Returns
+    -------
+    bool or None
+        False: the next simulator compiles them (tens of seconds, once per installation and
+        machine); True: it loads them; None: numba does not say.
+    """
+    try:
+        return os.path.exists(kernel.run_loop._cache._cache_file._index_path)
+    except AttributeError:  # another numba, or the pure-Python fallback
+        return None
 
 
 def _compiled(consist: Consist, params: BrakeParams, coupler, track: Track, resistance: bool,
@@ -953,6 +969,19 @@ class Simulator:
             events += [Event(t, "limit_exceeded", d) for t, d in self._holding()]
         return self.snapshot(tuple(events))
 
+    def warm_up(self) -> None:
+        """Load (or compile, on the first run after installing) every compiled function a run
+        calls: the step loop, the verdicts' scans and the check at rest. The state is left as
+        it was; a process that warms one simulator up runs every later one of the same train
+        without start-up cost."""
+        saved = self._state.copy()
+        try:
+            self.advance(self.step_s)
+            self._holding()
+        finally:
+            self._state = saved
+            self._workspace = None
+
     def _holding(self) -> list[tuple]:
         """The train at rest: each vehicle's force to hold against what it holds
         (:meth:`Watch.at_rest <ltd_brake_ros.verdicts.Watch.at_rest>`)."""
@@ -970,8 +999,8 @@ class Simulator:
                               scale)
         # the kinetic brake force at rest (Karwatzki's speed factor 0.6 at v = 0 for blocks)
         kinetic = np.where(fr.kind == friction.BRAKE_BLOCKS, 0.6 * scale, scale)
-        grip = np.array([friction.standstill_capacity(b, f, mass) for b, f, mass in zip(
-            st.brakes.force_N, fr.force_max_N, m.train.mass_kg)])
+        grip = np.empty(n)
+        friction.standstill_capacities(st.brakes.force_N, fr.force_max_N, m.train.mass_kg, grip)
         return st.watch.at_rest(st.time_s, need, np.maximum(np.maximum(kinetic, grip), 1.0))
 
     def _bind_kernel(self) -> None:

@@ -61,6 +61,29 @@ def _adhesion(args: argparse.Namespace):
         raise InputError("command line", "--adhesion", str(exc)) from None
 
 
+def _start_up(spec, params, lut, adhesion) -> float:
+    """Compile (first run) or load the simulation kernels before the timed run, saying so on
+    stderr when they compile; returns the seconds it took."""
+    import sys
+    import time
+
+    from ..simulator import Simulator, kernels_cached
+
+    cached = kernels_cached()
+    if cached is False:
+        print("compiling the simulation kernels (first run only; about a minute on two cores)",
+              file=sys.stderr, flush=True)
+    start = time.perf_counter()
+    # the same train as the run's: the run then takes this compiled model and bound step loop
+    Simulator(spec.consist, spec.speed_kmh, params, lut, spec.track,
+              adhesion=adhesion).warm_up()
+    took = time.perf_counter() - start
+    if cached is False:
+        print(f"compiled the simulation kernels in {took:.0f} s; later runs load them",
+              file=sys.stderr, flush=True)
+    return took
+
+
 def _timeseries(args: argparse.Namespace):
     """The sampler of ``--timeseries`` (None without it), the file checked before the run."""
     from pathlib import Path
@@ -133,15 +156,19 @@ def run(args: argparse.Namespace) -> int:
     params, lut = spec.params, spec.lut
     events = []
     sampler = _timeseries(args)
+    startup_s = _start_up(spec, params, lut, _adhesion(args))
     # the recording's commands: the emergency brake at t = 0
     script = CommandScript(((0.0, {"emergency": True}),))
     with _Progress() as progress, _Recording(args, spec, script) as rec:
         start = time.perf_counter()  # the run and its recording, not opening the folder
-        # chunk by chunk (no grouping): the verdicts and events sample the chunks' ends
+        # recorded or sampled: chunk by chunk; else several chunks a call while the stop is far
+        # (the same steps and verdicts: the kernel keeps the peaks; the first times of the
+        # limit events then come at the calls' ends)
         sim = emergency_run(spec.consist, spec.speed_kmh, params, lut, spec.track,
                             adhesion=_adhesion(args),
                             step_s=args.step_s, tolerance_m_s=tolerance(args),
                             chunk_s=_chunk(rec, sampler, CHUNK_S), max_time_s=MAX_TIME_S,
+                            group=sampler is None and not rec.recording,
                             on_chunk=_on_chunk(rec, sampler, events), progress=progress)
     res = summarize(sim, time.perf_counter() - start)
     _write_timeseries(args, sampler, sim, spec.speed_kmh)
@@ -158,6 +185,7 @@ def run(args: argparse.Namespace) -> int:
         out["limits_exceeded"] = _limit_events(events)
         out["verdicts"] = verdicts.as_dict()
         out["non_physical"] = verdicts.non_physical
+        out["startup_s"] = startup_s
         out["adhesion"] = sim.adhesion.name
         out["wheel_slides"] = sim.wheel_slides()
         print(json_by_key(out))
@@ -179,6 +207,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"warning          {res.out_of_range.describe()}")
     _print_slides(sim)
     _print_verdicts(verdicts)
+    print(f"start-up         {startup_s:.2f} s (compiling or loading the simulation kernels, "
+          "once per process)")
     print(f"cost             {res.wall_time_s * 1e3:.0f} ms wall, {res.real_time_factor:.0f}x "
           f"real time, {res.steps} steps ({res.rejected_steps} rejected, shortest "
           f"{res.smallest_step_s * 1e3:.2g} ms), {res.newton_iterations_per_step:.2f} Newton "
@@ -335,6 +365,11 @@ class _Recording:
         self._args, self._spec, self._script = args, spec, script
         self._rec = self._encoder = None
         self._next = 0  # first script step not recorded yet
+
+    @property
+    def recording(self) -> bool:
+        """A recording was asked for."""
+        return bool(self._folder)
 
     def chunk_s(self, default_s: float) -> float:
         """Chunk length of the run [s]: :data:`RECORD_CHUNK_S` when recording."""

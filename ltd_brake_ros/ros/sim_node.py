@@ -65,6 +65,7 @@ from ..plant.diagnostics import PlantStatus, format_fixed  # noqa: E402
 from ..plant.recorder import Recorder  # noqa: E402
 from ..plant.run import PlantRun, reset_run  # noqa: E402
 from ..plant.runner import PlantRunner  # noqa: E402
+from ..simulator import kernels_cached  # noqa: E402
 from ..recording.bag import message_class, type_name  # noqa: E402
 from ..recording.plant_topics import (ARRAY_TOPICS, CLOCK_TOPIC, COMMAND_TOPICS,  # noqa: E402
                                       STATE_TOPICS, StateEncoder)
@@ -118,9 +119,16 @@ class SimNode(Node):
         if p["clock"] == "follow" and p["lockstep"]:
             raise StartupError("clock", "follow cannot be combined with lockstep:=true: the "
                                "plant publishing /clock steps this one")
-        self.plant_run = PlantRun.build(p)
-        self._taps: list[Tap] = []
         log = self.get_logger()
+        cached = kernels_cached()
+        if cached is False:
+            log.info("compiling the simulation kernels (first start only; about a minute on "
+                     "two cores)")
+        started = time.monotonic()
+        self.plant_run = PlantRun.build(p)
+        if cached is False:
+            log.info(f"compiled the simulation kernels in {time.monotonic() - started:.0f} s")
+        self._taps: list[Tap] = []
         # after the kernel is loaded, while discovery finds the other nodes
         clock_topic = self.resolve_topic_name(CLOCK_TOPIC)
         self.clock_mode, line = resolve_clock(p["clock"], p["lockstep"], self._other_clocks,

@@ -238,6 +238,13 @@ def standstill_capacity(block_force_N, full_block_force_N, mass_kg):
     return STANDSTILL_ADHESION * G * mass_kg * share
 
 
+@jit_vector
+def standstill_capacities(block_force_N, full_block_force_N, mass_kg, out):
+    """:func:`standstill_capacity` of every vehicle (into ``out``) [N]."""
+    for i in range(block_force_N.shape[0]):
+        out[i] = standstill_capacity(block_force_N[i], full_block_force_N[i], mass_kg[i])
+
+
 @jit_inline
 def retarding_force(kind, speed_m_s, scale):
     """Retarding force of one vehicle [N] and its derivative [N/(m/s)] at a speed magnitude.
