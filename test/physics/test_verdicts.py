@@ -10,7 +10,6 @@ import pytest
 from ltd_brake_ros import verdicts
 from ltd_brake_ros.inputs import consist_from_mapping, get_scenario, load_coupler_lut
 from ltd_brake_ros.inputs.consist import VehicleLimits
-from ltd_brake_ros.physics.brakes import friction
 from ltd_brake_ros.physics.constants import G, KMH_PER_MS
 from ltd_brake_ros.simulator import Commands, Simulator
 

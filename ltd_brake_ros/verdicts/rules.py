@@ -1,0 +1,410 @@
+"""The rules the verdicts apply: each criterion's limit, scope and source, and a train's limits."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from ..physics.constants import G
+
+__all__ = ["ADHESION_AT_SPEED_LIMIT", "ADHESION_LIMIT", "ADHESION_LIMIT_WSP",
+           "ADHESION_SPEED_KMH", "BUFF_STRENGTH_N", "CRITERIA", "DRAFT_STRENGTH_N",
+           "MEAN_ADHESION_MIN_DISTANCE_M", "MEAN_ADHESION_MIN_INITIAL_KMH",
+           "STANDSTILL_SAMPLE_M_S", "Rule", "TrainLimits", "default_coupler_limits",
+           "limits_from_metadata", "limits_metadata", "train_limits", "wet_rail_adhesion"]
+
+#: Default draft strength of a coupling [N]: the minimum breaking load of the standard screw
+#: coupling, 850 kN (UIC 520/826 as summarised by secondary sources; not verified in the
+#: standard's text), below EN 15566's lowest draw-gear category, 1.0 MN (verified in the
+#: standard's summary): the weaker part breaks.
+DRAFT_STRENGTH_N = 850e3
+#: Default buff strength of a coupling [N]: the longitudinal compressive proof load of a
+#: freight wagon body at buffer height, 2000 kN (EN 12663-2; the value and its category name
+#: are not verified in the standard's text).
+BUFF_STRENGTH_N = 2000e3
+#: Default limit of the mean utilised adhesion of a vehicle without wheel-slide protection
+#: [-]: 0.12, the demand above which freight wagons with tread brakes need wheel-slide
+#: protection (WAG TSI, Regulation (EU) 321/2013, as summarised; not verified in its text),
+#: judged on the mean of a braking calculation (EN 14531-1, secondary source).
+ADHESION_LIMIT = 0.12
+#: Default limit of the mean utilised adhesion of a vehicle with wheel-slide protection [-]:
+#: 0.15, the adhesion a braking calculation may assume (TSI LOC&PAS, Regulation (EU)
+#: 1302/2014, 4.2.4.6.1, for locomotives and passenger stock: an analogy for wagons; not
+#: verified in its text).
+ADHESION_LIMIT_WSP = 0.15
+#: Instantaneous adhesion demand that earns a warning above :data:`ADHESION_SPEED_KMH` [-]
+#: (the same TSI LOC&PAS value, not verified in its text).
+ADHESION_AT_SPEED_LIMIT = 0.15
+#: Speed below which the instantaneous demand is information only [km/h]: cast-iron block
+#: friction (Karwatzki, Eq. 8) rises steeply at low speed, where a stop's braked part ends.
+ADHESION_SPEED_KMH = 30.0
+#: Mean utilised adhesion is judged on stops from this speed or faster [km/h]: mean-value
+#: brake calculations start from the reference speeds of the braked weight, 100 and 120 km/h
+#: (UIC 544-1); a stop from lower speeds runs on the steep low-speed part of the block
+#: friction and says nothing of the brake's design (its mean is shown, not judged).
+MEAN_ADHESION_MIN_INITIAL_KMH = 100.0
+#: Least distance of the braked part for a mean to be computed [m].
+MEAN_ADHESION_MIN_DISTANCE_M = 1.0
+#: Sampled vehicles this slow are at rest: no adhesion demand is taken from them [m/s]
+#: (the simulator's standstill speed).
+STANDSTILL_SAMPLE_M_S = 1e-3
+#: Wet-rail adhesion as a fraction of dry (Koffman 1948, secondary source: ~0.6).
+WET_RAIL_FACTOR = 0.6
+
+
+def wet_rail_adhesion(speed_kmh):
+    """Available adhesion on a wet rail [-]: Curtius-Kniffler's dry curve x 0.6.
+
+    mu = 0.6 (7.5 / (v + 44) + 0.161), v in km/h (Curtius-Kniffler, a traction curve quoted by
+    secondary sources; wet/dry ratio after Koffman 1948, secondary source). Used only to
+    annotate the low-speed demand; about 0.20 at rest, 0.15 at 30 km/h.
+
+    Parameters
+    ----------
+    speed_kmh : float or ndarray
+        Speed [km/h].
+
+    Returns
+    -------
+    float or ndarray
+    """
+    return WET_RAIL_FACTOR * (7.5 / (np.asarray(speed_kmh, float) + 44.0) + 0.161)
+
+
+class Rule(NamedTuple):
+    """What a criterion assesses.
+
+    Attributes
+    ----------
+    title : str
+    quantity : str
+        What is compared with the limit.
+    element : str
+        ``coupler`` (numbered from 1 behind the head) or ``vehicle`` (from 0 at the head).
+    unit : str
+        ``kN``, ``mm`` or ``-``.
+    severity : str
+        Status when a limit is exceeded: ``FAIL``, ``WARN`` or ``INFO``.
+    scope : str
+        The part of the run and the vehicles the criterion applies to.
+    """
+
+    title: str
+    quantity: str
+    element: str
+    unit: str
+    severity: str
+    scope: str
+
+
+#: Criteria in table order.
+CRITERIA = {
+    "draft_strength": Rule("Coupler draft strength", "draft force", "coupler", "kN", "FAIL",
+                           "every coupler, all speeds"),
+    "buff_strength": Rule("Coupler buff strength", "buff force", "coupler", "kN", "FAIL",
+                          "every coupler, all speeds"),
+    "endurable_lcf": Rule("Endurable longitudinal compressive force", "buff force", "coupler",
+                          "kN", "FAIL", "couplers of vehicles that give one, all speeds"),
+    "coupler_travel": Rule("Within the coupler's travel", "deflection beyond the travel",
+                           "coupler", "mm", "FAIL", "every coupler, all speeds"),
+    "adhesion": Rule("Mean utilised adhesion", "mean brake force at the rails / weight",
+                     "vehicle", "-", "FAIL",
+                     f"braked vehicles, stops from {MEAN_ADHESION_MIN_INITIAL_KMH:.0f} km/h or "
+                     "more, from full application to 5 km/h"),
+    "adhesion_at_speed": Rule("Adhesion demand at speed", "brake force / weight", "vehicle",
+                              "-", "WARN", f"braked vehicles above {ADHESION_SPEED_KMH:.0f} km/h"),
+    "adhesion_low_speed": Rule("Adhesion demand at low speed", "brake force / weight",
+                               "vehicle", "-", "INFO",
+                               f"braked vehicles below {ADHESION_SPEED_KMH:.0f} km/h, moving"),
+    "standstill_holding": Rule("Holding at rest", "force to hold (couplers, grade)", "vehicle",
+                               "kN", "FAIL", "every vehicle after the train has stopped"),
+}
+_DEFAULT_ORIGIN = {
+    "draft_strength": "default 850 kN: screw coupling breaking load (UIC 520/826 via secondary "
+                      "sources, not verified; EN 15566 draw-gear categories 1.0/1.2/1.5 MN)",
+    "buff_strength": "default 2000 kN: wagon body compressive proof load (EN 12663-2, not "
+                     "verified in its text)",
+    "endurable_lcf": "not given (EN 15839: a property of each vehicle; set limits."
+                     "endurable_lcf_kN in the consist)",
+    "adhesion": "default 0.12 without wheel-slide protection (WAG TSI, Reg. 321/2013, not "
+                "verified in its text), 0.15 with it (TSI LOC&PAS 4.2.4.6.1, not verified); "
+                "mean of a braking calculation (EN 14531-1)",
+    "adhesion_at_speed": "0.15: adhesion a braking calculation may assume (TSI LOC&PAS "
+                         "4.2.4.6.1, locomotives and passenger stock; not verified in its text)",
+    "adhesion_low_speed": "information: a wet rail's adhesion, Curtius-Kniffler x 0.6 "
+                          "(secondary sources), never a failure",
+    "coupler_travel": "the coupler model's valid range",
+    "standstill_holding": "what a vehicle at rest holds: its kinetic brake force at rest, or "
+                          "with the brake applied 0.30 m g at full application (dry-rail "
+                          "adhesion at rest, secondary sources; the clamped brake assumed to "
+                          "hold the wheel)",
+}
+
+
+@dataclass(frozen=True)
+class TrainLimits:
+    """The limits of one train, per coupler and per vehicle.
+
+    Attributes
+    ----------
+    draft_strength_N, buff_strength_N : ndarray
+        Per coupler (coupler 1 first), magnitudes [N].
+    endurable_lcf_N : ndarray
+        Per coupler, magnitude [N]; inf where no vehicle gives one (not assessed).
+    adhesion_limit : ndarray
+        Limit of each vehicle's mean utilised adhesion, head first [-].
+    weight_N : ndarray
+        Per vehicle, m g [N].
+    origin : dict of str to str
+        Where each criterion's limits come from.
+    braked : ndarray of bool
+        Per vehicle: it has an air brake (unbraked vehicles demand no adhesion).
+    blocks : ndarray of bool
+        Per vehicle: its brake is a block (tread) brake, whose force follows Karwatzki's speed
+        factor.
+    full_scale_N : ndarray
+        Per vehicle, the retarding-force scale of a fully applied brake
+        (:attr:`~.physics.brakes.friction.FrictionArrays.full_scale_N`) [N]; 0 where unknown.
+    rotating_mass_kg : ndarray
+        Per vehicle, (rho - 1) M [kg].
+    travel_mm : tuple of float
+        The coupler model's valid deflections, (buff end, draft end) [mm] (inf: unbounded).
+    """
+
+    draft_strength_N: np.ndarray
+    buff_strength_N: np.ndarray
+    endurable_lcf_N: np.ndarray
+    adhesion_limit: np.ndarray
+    weight_N: np.ndarray
+    origin: dict = field(default_factory=dict)
+    braked: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    blocks: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    full_scale_N: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    rotating_mass_kg: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    travel_mm: tuple = (-math.inf, math.inf)
+
+    def of(self, criterion: str) -> np.ndarray:
+        """The per-coupler or per-vehicle limits of a criterion."""
+        n = self.adhesion_limit.size
+        return {"draft_strength": self.draft_strength_N, "buff_strength": self.buff_strength_N,
+                "endurable_lcf": self.endurable_lcf_N, "adhesion": self.adhesion_limit,
+                "coupler_travel": np.zeros(self.draft_strength_N.size),
+                "adhesion_at_speed": np.full(n, ADHESION_AT_SPEED_LIMIT),
+                "adhesion_low_speed": np.full(n, math.inf),
+                "standstill_holding": np.full(n, math.inf)}[criterion]
+
+
+def _coupler_limit(per_vehicle: list, model_value: float, default: float):
+    """Per-coupler limit: smaller of the two vehicles' values, else the model's, else default."""
+    out, origins = [], set()
+    for a, b in zip(per_vehicle[:-1], per_vehicle[1:]):
+        given = [x for x in (a, b) if x is not None]
+        if given:
+            out.append(min(given))
+            origins.add("consist")
+        elif math.isfinite(model_value):
+            out.append(model_value)
+            origins.add("coupler file")
+        else:
+            out.append(default)
+            origins.add("default")
+    return np.array(out, float), origins
+
+
+def _origin_text(criterion: str, origins: set) -> str:
+    parts = []
+    if "consist" in origins:
+        parts.append("consist limits")
+    if "coupler file" in origins:
+        parts.append("coupler file")
+    if "default" in origins:
+        parts.append(_DEFAULT_ORIGIN[criterion])
+    return "; ".join(parts) or "no coupler"
+
+
+def train_limits(consist, coupler_params=None, *, adhesion_limit: float | None = None,
+                 friction_arrays=None, coupler_arrays=None) -> TrainLimits:
+    """The limits of a train: consist ``limits``, the coupler model's, the defaults.
+
+    Parameters
+    ----------
+    consist : Consist
+    coupler_params : dataclass, optional
+        A coupler model's ``Params`` (its ``draft_strength_N``/``buff_strength_N``, inf when
+        unknown).
+    adhesion_limit : float, optional
+        Mean-adhesion limit of every vehicle whose consist entry gives none (default:
+        :data:`ADHESION_LIMIT`, or :data:`ADHESION_LIMIT_WSP` for a vehicle with wheel-slide
+        protection).
+    friction_arrays : FrictionArrays, optional
+        The train's compiled friction law: the full retarding-force scale of each brake, which
+        a recording's report needs to find the braked part of a stop.
+    coupler_arrays : CouplerArrays, optional
+        The compiled coupler model: its valid range, the travel the couplers are judged by.
+
+    Returns
+    -------
+    TrainLimits
+    """
+    lims = [v.limits for v in consist.vehicles]
+    draft, o_draft = _coupler_limit([x.draft_strength_N for x in lims],
+                                    float(getattr(coupler_params, "draft_strength_N", math.inf)),
+                                    DRAFT_STRENGTH_N)
+    buff, o_buff = _coupler_limit([x.buff_strength_N for x in lims],
+                                  float(getattr(coupler_params, "buff_strength_N", math.inf)),
+                                  BUFF_STRENGTH_N)
+    lcf, o_lcf = _coupler_limit([x.endurable_lcf_N for x in lims], math.inf, math.inf)
+
+    def default(x):
+        if adhesion_limit is not None:
+            return float(adhesion_limit)
+        return ADHESION_LIMIT_WSP if getattr(x, "wheel_slide_protection", False) \
+            else ADHESION_LIMIT
+    adhesion = np.array([default(x) if x.adhesion_limit is None else x.adhesion_limit
+                         for x in lims], float)
+    o_adh = {"consist" if x.adhesion_limit is not None else "default" for x in lims}
+    travel = (-math.inf, math.inf)
+    o_travel = "no coupler"
+    if coupler_arrays is not None:
+        travel = (float(coupler_arrays.valid_lo_m) * 1e3, float(coupler_arrays.valid_hi_m) * 1e3)
+        end = getattr(coupler_params, "solid_end_force_N", None)
+        o_travel = (f"buffers' solid end and draw gear's stroke, {travel[0]:.0f} to "
+                    f"{travel[1]:.0f} mm (beyond: the body's stiffness, forces not physical)"
+                    if end is not None else
+                    f"the coupler characteristic's valid range, {travel[0]:.0f} to "
+                    f"{travel[1]:.0f} mm (beyond: the buffers solid or the curves "
+                    "extrapolated, forces not physical)")
+    origin = {"draft_strength": _origin_text("draft_strength", o_draft),
+              "buff_strength": _origin_text("buff_strength", o_buff),
+              "endurable_lcf": _origin_text("endurable_lcf", o_lcf),
+              "coupler_travel": o_travel,
+              "adhesion": (_origin_text("adhesion", o_adh) if adhesion_limit is None else
+                           "campaign file" + ("; consist limits" if "consist" in o_adh else "")),
+              "adhesion_at_speed": _DEFAULT_ORIGIN["adhesion_at_speed"],
+              "adhesion_low_speed": _DEFAULT_ORIGIN["adhesion_low_speed"],
+              "standstill_holding": _DEFAULT_ORIGIN["standstill_holding"]}
+    vs = consist.vehicles
+    weight = np.array([v.mass_kg for v in vs], float) * G
+    braked = np.array([getattr(v.brake, "type", "none") in ("blocks", "disc") for v in vs])
+    blocks = np.array([getattr(v.brake, "type", "none") == "blocks" for v in vs])
+    full = (np.asarray(friction_arrays.full_scale_N, float).copy() if friction_arrays is not None
+            else np.zeros(len(vs)))
+    rot = np.array([(v.inertia_factor - 1.0) * v.mass_kg for v in vs], float)
+    return TrainLimits(draft, buff, lcf, adhesion, weight, origin, braked, blocks, full, rot,
+                       travel)
+
+
+def limits_metadata(limits: TrainLimits) -> dict:
+    """The limits as JSON-serialisable run information (kN, t, mm), for a recording.
+
+    Parameters
+    ----------
+    limits : TrainLimits
+
+    Returns
+    -------
+    dict
+        Read back by :func:`limits_from_metadata`.
+    """
+    def kn(a):
+        return [None if not math.isfinite(x) else x / 1e3 for x in a.tolist()]
+    return {"draft_strength_kN": kn(limits.draft_strength_N),
+            "buff_strength_kN": kn(limits.buff_strength_N),
+            "endurable_lcf_kN": kn(limits.endurable_lcf_N),
+            "adhesion_limit": limits.adhesion_limit.tolist(),
+            "mass_t": (limits.weight_N / G / 1e3).tolist(),
+            "braked": limits.braked.tolist(), "block_brake": limits.blocks.tolist(),
+            "full_brake_scale_kN": (limits.full_scale_N / 1e3).tolist(),
+            "rotating_mass_t": (limits.rotating_mass_kg / 1e3).tolist(),
+            "coupler_travel_mm": [None if not math.isfinite(x) else x
+                                  for x in limits.travel_mm],
+            "origin": dict(limits.origin)}
+
+
+def limits_from_metadata(meta, n_vehicles: int) -> TrainLimits | None:
+    """Limits stored by :func:`limits_metadata`, or None when absent or not of this train.
+
+    Recordings made before the brakes' full scale was stored carry no way to find the braked
+    part of a stop: their mean adhesion is not assessed.
+
+    Parameters
+    ----------
+    meta : object
+        The ``limits`` entry of a recording's run information.
+    n_vehicles : int
+        Vehicles in the recorded arrays.
+
+    Returns
+    -------
+    TrainLimits or None
+    """
+    if not isinstance(meta, dict):
+        return None
+    try:
+        def arr(key, n, scale=1.0, positive=True):
+            values = meta[key]
+            if not isinstance(values, list) or len(values) != n:
+                raise ValueError(key)
+            out = np.array([math.inf if x is None else float(x) * scale for x in values])
+            if np.isnan(out).any() or (positive and (out <= 0.0).any()) or (out < 0.0).any():
+                raise ValueError(key)
+            return out
+
+        def flags_of(key, n):
+            values = meta[key]
+            if not isinstance(values, list) or len(values) != n or \
+                    not all(isinstance(x, bool) for x in values):
+                raise ValueError(key)
+            return np.array(values, bool)
+        nc = max(n_vehicles - 1, 0)
+        origin = meta.get("origin")
+        if all(k in meta for k in ("braked", "block_brake", "full_brake_scale_kN",
+                                   "rotating_mass_t")):
+            braked, blocks = flags_of("braked", n_vehicles), flags_of("block_brake", n_vehicles)
+            full = arr("full_brake_scale_kN", n_vehicles, 1e3, positive=False)
+            rot = arr("rotating_mass_t", n_vehicles, 1e3, positive=False)
+        else:
+            braked, blocks = np.zeros(n_vehicles, bool), np.zeros(n_vehicles, bool)
+            full, rot = np.zeros(n_vehicles), np.zeros(n_vehicles)
+        travel = (-math.inf, math.inf)
+        t = meta.get("coupler_travel_mm")
+        if isinstance(t, list) and len(t) == 2:
+            lo = -math.inf if t[0] is None else float(t[0])
+            hi = math.inf if t[1] is None else float(t[1])
+            if not (lo < 0.0 < hi):
+                raise ValueError("coupler_travel_mm")
+            travel = (lo, hi)
+        return TrainLimits(arr("draft_strength_kN", nc, 1e3), arr("buff_strength_kN", nc, 1e3),
+                           arr("endurable_lcf_kN", nc, 1e3), arr("adhesion_limit", n_vehicles),
+                           arr("mass_t", n_vehicles, 1e3 * G),
+                           {str(k): str(v) for k, v in origin.items()}
+                           if isinstance(origin, dict) else {}, braked, blocks, full, rot,
+                           travel)
+    except (KeyError, TypeError, ValueError, OverflowError):
+        return None
+
+
+def default_coupler_limits(n_vehicles: int) -> TrainLimits:
+    """Default coupler limits of a train whose vehicles are not known (no adhesion limits).
+
+    Parameters
+    ----------
+    n_vehicles : int
+
+    Returns
+    -------
+    TrainLimits
+        Zero-length adhesion limits and weights: the adhesion criteria are not assessed.
+    """
+    nc = max(n_vehicles - 1, 0)
+    none = "not assessed: the recording holds no vehicle masses"
+    return TrainLimits(np.full(nc, DRAFT_STRENGTH_N), np.full(nc, BUFF_STRENGTH_N),
+                       np.full(nc, math.inf), np.zeros(0), np.zeros(0),
+                       {"draft_strength": _DEFAULT_ORIGIN["draft_strength"],
+                        "buff_strength": _DEFAULT_ORIGIN["buff_strength"],
+                        "endurable_lcf": _DEFAULT_ORIGIN["endurable_lcf"],
+                        "coupler_travel": "not assessed: the recording holds no coupler travel",
+                        "adhesion": none, "adhesion_at_speed": none,
+                        "adhesion_low_speed": none, "standstill_holding": none})

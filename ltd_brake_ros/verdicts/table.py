@@ -1,0 +1,467 @@
+"""The verdicts table of a run: its criteria, their exceedances, and what other outputs take."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .rules import (ADHESION_AT_SPEED_LIMIT, CRITERIA, MEAN_ADHESION_MIN_INITIAL_KMH, Rule,
+                    TrainLimits, wet_rail_adhesion)
+
+__all__ = ["Criterion", "Exceedance", "FLAG_NAMES", "VehicleDemand", "Verdicts",
+           "diagnostic_values", "flags", "judge"]
+
+
+def _amount(unit: str, value: float, limit: float) -> str:
+    if unit == "kN":
+        return (f"{value / 1e3:.0f} kN > {limit / 1e3:.0f} kN "
+                f"(+{(value - limit) / 1e3:.0f} kN, +{100.0 * (value - limit) / limit:.0f} %)")
+    if unit == "mm":
+        return f"{value:.1f} mm"
+    if not math.isfinite(limit):
+        return f"{value:.3f}"
+    return f"{value:.3f} > {limit:.3f} (+{value - limit:.3f})"
+
+
+@dataclass(frozen=True)
+class Exceedance:
+    """One coupler or vehicle beyond its limit.
+
+    Attributes
+    ----------
+    criterion : str
+        A key of :data:`CRITERIA`.
+    element : str
+        ``coupler`` (numbered from 1 behind the head) or ``vehicle`` (from 0 at the head).
+    number : int
+    value : float
+        Its worst force magnitude [N], excursion [mm] or adhesion demand [-].
+    limit : float
+        Its limit, same unit.
+    time_s : float
+        When the worst occurred [s] (a mean: when its braked part ended).
+    speed_kmh : float
+        Speed then (a coupler: the head's; a vehicle: its own) [km/h].
+    first_time_s : float
+        When it was first seen beyond the limit [s] (resolution: the simulator's chunks, or
+        the recorded samples).
+    """
+
+    criterion: str
+    element: str
+    number: int
+    value: float
+    limit: float
+    time_s: float
+    speed_kmh: float
+    first_time_s: float
+
+    @property
+    def excess(self) -> float:
+        """By how much the limit was exceeded (value - limit), same unit."""
+        return self.value - self.limit
+
+    def describe(self) -> str:
+        """One line: which, by how much, when, at what speed."""
+        rule = CRITERIA[self.criterion]
+        speed = f", {self.speed_kmh:.1f} km/h" if math.isfinite(self.speed_kmh) else ""
+        return (f"{self.element} {self.number}: {rule.quantity} "
+                f"{_amount(rule.unit, self.value, self.limit)} at t = {self.time_s:.2f} s"
+                f"{speed} (first at t = {self.first_time_s:.2f} s)")
+
+    def as_dict(self) -> dict:
+        """JSON-serialisable, units in the keys."""
+        unit = CRITERIA[self.criterion].unit
+        scale, suffix = {"kN": (1e-3, "_kN"), "mm": (1.0, "_mm")}.get(unit, (1.0, ""))
+        return {"criterion": self.criterion, self.element: self.number,
+                f"value{suffix}": self.value * scale, f"limit{suffix}": self.limit * scale,
+                f"excess{suffix}": self.excess * scale, "time_s": self.time_s,
+                "speed_kmh": self.speed_kmh if math.isfinite(self.speed_kmh) else None,
+                "first_time_s": self.first_time_s}
+
+
+@dataclass(frozen=True)
+class Criterion:
+    """One row of the verdicts table.
+
+    Attributes
+    ----------
+    name : str
+        A key of :data:`CRITERIA`.
+    assessed : bool
+        Limits were given and the run reached the criterion's scope (False: not assessed).
+    limit_min, limit_max : float
+        Range of the limits over the train [N], [mm] or [-].
+    origin : str
+        Where the limits come from (their source), or why the criterion was not assessed.
+    worst_value : float
+        Largest value over the train [N], [mm] or [-].
+    worst_number : int
+        Coupler or vehicle that had it.
+    worst_time_s : float
+    exceedances : tuple of Exceedance
+        Every coupler or vehicle beyond its limit, worst excess (relative) first.
+    note : str
+        What the value means beyond PASS/FAIL (e.g. a wet rail's adhesion exceeded).
+    """
+
+    name: str
+    assessed: bool
+    limit_min: float
+    limit_max: float
+    origin: str
+    worst_value: float
+    worst_number: int
+    worst_time_s: float
+    exceedances: tuple = ()
+    note: str = ""
+
+    @property
+    def rule(self) -> Rule:
+        """What the criterion assesses and where."""
+        return CRITERIA[self.name]
+
+    @property
+    def passed(self) -> bool | None:
+        """True: none beyond (or beyond only a WARN or INFO limit); False: a FAIL criterion
+        exceeded; None: not assessed."""
+        if not self.assessed:
+            return None
+        return not (self.exceedances and self.rule.severity == "FAIL")
+
+    @property
+    def status(self) -> str:
+        """``PASS``, ``FAIL``, ``WARN``, ``INFO`` or ``not assessed``."""
+        if not self.assessed:
+            return "not assessed"
+        if self.rule.severity == "INFO":
+            return "INFO"
+        return self.rule.severity if self.exceedances else "PASS"
+
+    def _limit_text(self) -> str:
+        unit = self.rule.unit
+        f = (lambda x: f"{x / 1e3:.0f} kN") if unit == "kN" else (lambda x: f"{x:.3g}")
+        if unit == "mm":
+            return "the travel"
+        if self.limit_min == self.limit_max:
+            return f(self.limit_min)
+        return f"{f(self.limit_min)} to {f(self.limit_max)}"
+
+    def describe(self, most: int | None = 5) -> list[str]:
+        """The row, its scope and source, and its exceedances, one line each (the ``most``
+        worst; None: all)."""
+        rule = self.rule
+        if not self.assessed:
+            return [f"{self.status:<4}  {rule.title}: {self.origin}"]
+        unit = rule.unit
+        worst = (f"{self.worst_value / 1e3:.0f} kN" if unit == "kN" else
+                 f"{self.worst_value:.1f} mm" if unit == "mm" else f"{self.worst_value:.3f}")
+        limit = "" if rule.severity == "INFO" else f"limit {self._limit_text()}; "
+        if unit == "mm" and not self.exceedances:
+            lines = [f"{self.status:<4}  {rule.title} ({rule.scope}): no coupler went beyond its "
+                     "travel"]
+        else:
+            lines = [f"{self.status:<4}  {rule.title} ({rule.scope}): {limit}worst "
+                     f"{rule.quantity} {worst} at {rule.element} {self.worst_number} "
+                     f"(t = {self.worst_time_s:.2f} s)" + (f"; {self.note}" if self.note else "")]
+        lines.append(f"        source: {self.origin}")
+        if rule.severity != "INFO":
+            shown = self.exceedances if most is None else self.exceedances[:most]
+            lines += [f"        {e.describe()}" for e in shown]
+            if len(shown) < len(self.exceedances):
+                lines.append(f"        ... and {len(self.exceedances) - len(shown)} more "
+                             f"{rule.element}s beyond their limit")
+        return lines
+
+    def as_dict(self) -> dict:
+        """JSON-serialisable, units in the keys."""
+        rule = self.rule
+        scale, unit = {"kN": (1e-3, "_kN"), "mm": (1.0, "_mm")}.get(rule.unit, (1.0, ""))
+
+        def num(x):
+            return x * scale if math.isfinite(x) else None
+        return {"criterion": self.name, "title": rule.title, "status": self.status,
+                "severity": rule.severity, "scope": rule.scope,
+                f"limit_min{unit}": num(self.limit_min), f"limit_max{unit}": num(self.limit_max),
+                "origin": self.origin, f"worst{unit}": num(self.worst_value),
+                f"worst_{rule.element}": self.worst_number,
+                "worst_time_s": self.worst_time_s, "note": self.note,
+                "exceedances": [e.as_dict() for e in self.exceedances]}
+
+
+@dataclass(frozen=True)
+class Verdicts:
+    """The verdicts table of a run.
+
+    Attributes
+    ----------
+    criteria : tuple of Criterion
+        In :data:`CRITERIA` order.
+    """
+
+    criteria: tuple
+
+    @property
+    def passed(self) -> bool:
+        """No assessed FAIL criterion failed."""
+        return all(c.passed is not False for c in self.criteria)
+
+    @property
+    def status(self) -> str:
+        """``FAIL`` (a FAIL criterion exceeded), ``WARN`` (a WARN criterion exceeded) or
+        ``PASS``."""
+        if not self.passed:
+            return "FAIL"
+        return "WARN" if any(c.status == "WARN" for c in self.criteria) else "PASS"
+
+    @property
+    def non_physical(self) -> bool:
+        """A coupler went beyond its travel: the forces of the run are not physical."""
+        return any(c.name == "coupler_travel" and c.exceedances for c in self.criteria)
+
+    def __getitem__(self, name: str) -> Criterion:
+        return next(c for c in self.criteria if c.name == name)
+
+    def describe(self, most: int | None = 5) -> list[str]:
+        """The table as text lines (per criterion the ``most`` worst exceedances)."""
+        lines = [line for c in self.criteria for line in c.describe(most)]
+        if self.non_physical:
+            lines.append("NON-PHYSICAL: couplers went beyond their travel; the forces beyond it "
+                         "are not results")
+        return lines
+
+    def as_dict(self) -> dict:
+        """JSON-serialisable."""
+        return {"passed": self.passed, "status": self.status,
+                "non_physical": self.non_physical,
+                "criteria": [c.as_dict() for c in self.criteria]}
+
+
+def _criterion(name, values, limits, times, speeds, first, element_base, origin,
+               assessed=None, note="") -> Criterion:
+    finite = np.isfinite(limits) if assessed is None else np.asarray(assessed, bool)
+    ok = finite & np.isfinite(values)
+    if values.size == 0 or not ok.any():
+        return Criterion(name, False, math.inf, math.inf, origin, 0.0, 0, 0.0)
+    k = int(np.argmax(np.where(ok, values, -np.inf)))
+    lim_ok = np.isfinite(limits) & ok
+    over = np.flatnonzero(lim_ok & (values > limits))
+    rel = (values[over] - limits[over]) / np.where(limits[over] > 0.0, limits[over], 1.0)
+    over = over[np.argsort(-rel, kind="stable")]
+    element = CRITERIA[name].element
+    first_seen = np.where(first[over] >= 0.0, first[over], times[over])
+    ex = tuple(Exceedance(name, element, *row) for row in zip(
+        (over + element_base).tolist(), values[over].tolist(), limits[over].tolist(),
+        times[over].tolist(), speeds[over].tolist(), first_seen.tolist()))
+    shown = limits[lim_ok] if lim_ok.any() else np.array([math.inf])
+    return Criterion(name, True, float(shown.min()), float(shown.max()), origin,
+                     float(values[k]), k + element_base, float(times[k]), ex, note)
+
+
+@dataclass
+class VehicleDemand:
+    """Per-vehicle adhesion records of a run, as :func:`judge` takes them.
+
+    Attributes
+    ----------
+    mean, mean_distance_m, mean_end_time_s, mean_end_speed_kmh : ndarray
+        Mean utilised adhesion [-] (NaN: no braked part), the distance it is taken over [m],
+        when and at what speed the braked part ended [s], [km/h].
+    initial_speed_kmh : float
+        The head's speed at the brake command [km/h] (NaN: no command).
+    at_speed, at_speed_time_s, at_speed_kmh : ndarray
+        Largest instantaneous demand above :data:`ADHESION_SPEED_KMH` [-], when, at what speed.
+    low_speed, low_speed_time_s, low_speed_kmh : ndarray
+        The same below it, moving.
+    """
+
+    mean: np.ndarray
+    mean_distance_m: np.ndarray
+    mean_end_time_s: np.ndarray
+    mean_end_speed_kmh: np.ndarray
+    initial_speed_kmh: float
+    at_speed: np.ndarray
+    at_speed_time_s: np.ndarray
+    at_speed_kmh: np.ndarray
+    low_speed: np.ndarray
+    low_speed_time_s: np.ndarray
+    low_speed_kmh: np.ndarray
+
+    @classmethod
+    def empty(cls, n: int) -> "VehicleDemand":
+        """Nothing recorded yet for ``n`` vehicles."""
+        z = np.zeros
+        return cls(np.full(n, np.nan), z(n), z(n), z(n), math.nan, z(n), z(n), z(n), z(n),
+                   z(n), z(n))
+
+
+def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_kmh,
+          peak_buff_N, peak_buff_time_s, buff_speed_kmh, demand: VehicleDemand | None = None,
+          travel_beyond_mm=None, travel_time_s=None, travel_speed_kmh=None,
+          holding=None, holding_reason: str = "not assessed: the train has not stopped",
+          first_time_s: dict | None = None) -> Verdicts:
+    """The verdicts table from a run's per-coupler peaks and per-vehicle adhesion records.
+
+    Parameters
+    ----------
+    limits : TrainLimits
+    peak_draft_N, peak_buff_N : array_like
+        Largest draft (>= 0) and buff (<= 0) force of each coupler [N].
+    peak_draft_time_s, peak_buff_time_s : array_like
+        When [s].
+    draft_speed_kmh, buff_speed_kmh : array_like
+        Speed at those times [km/h].
+    demand : VehicleDemand, optional
+        Adhesion records (omitted: the adhesion criteria are not assessed).
+    travel_beyond_mm, travel_time_s, travel_speed_kmh : array_like, optional
+        Largest excursion of each coupler beyond its travel [mm] (0: none), when, the head's
+        speed then (omitted: the travel is not assessed).
+    holding : tuple of array_like, optional
+        (force to hold [N], what the vehicle holds [N], when [s]) of each vehicle at its
+        worst moment at rest after the stop (omitted: not assessed, ``holding_reason``).
+    holding_reason : str, optional
+        Why holding is not assessed when ``holding`` is omitted.
+    first_time_s : dict, optional
+        Criterion -> per-element time each was first seen beyond its limit [s] (-1: never;
+        default: the time of the worst).
+
+    Returns
+    -------
+    Verdicts
+    """
+    first_time_s = first_time_s or {}
+    draft = np.asarray(peak_draft_N, float)
+    buff = -np.asarray(peak_buff_N, float)
+    origin = limits.origin
+
+    def first(name, n):
+        return np.asarray(first_time_s.get(name, np.full(n, -1.0)), float)
+    rows = [_criterion("draft_strength", draft, limits.draft_strength_N,
+                       np.asarray(peak_draft_time_s, float), np.asarray(draft_speed_kmh, float),
+                       first("draft_strength", draft.size), 1,
+                       origin.get("draft_strength", ""))]
+    for name in ("buff_strength", "endurable_lcf"):
+        rows.append(_criterion(name, buff, limits.of(name), np.asarray(peak_buff_time_s, float),
+                               np.asarray(buff_speed_kmh, float), first(name, buff.size), 1,
+                               origin.get(name, "")))
+    if travel_beyond_mm is None or not any(map(math.isfinite, limits.travel_mm)):
+        rows.append(Criterion("coupler_travel", False, math.inf, math.inf, origin.get(
+            "coupler_travel", "not assessed: the coupler's travel is not known"), 0.0, 0, 0.0))
+    else:
+        beyond = np.asarray(travel_beyond_mm, float)
+        rows.append(_criterion("coupler_travel", beyond, np.zeros(beyond.size),
+                               np.asarray(travel_time_s, float),
+                               np.asarray(travel_speed_kmh, float),
+                               first("coupler_travel", beyond.size), 1,
+                               origin.get("coupler_travel", "")))
+    rows += _adhesion_rows(limits, demand, first)
+    if holding is None:
+        rows.append(Criterion("standstill_holding", False, math.inf, math.inf,
+                              holding_reason if limits.adhesion_limit.size else origin.get(
+                                  "standstill_holding", "not assessed"), 0.0, 0, 0.0))
+    else:
+        need, cap, t = (np.asarray(a, float) for a in holding)
+        rows.append(_criterion("standstill_holding", need, cap, t, np.zeros(need.size),
+                               first("standstill_holding", need.size), 0,
+                               origin.get("standstill_holding", "")))
+    return Verdicts(tuple(rows))
+
+
+def _adhesion_rows(limits: TrainLimits, d: VehicleDemand | None, first) -> list[Criterion]:
+    n = limits.adhesion_limit.size
+    names = ("adhesion", "adhesion_at_speed", "adhesion_low_speed")
+    if d is None or n == 0:
+        return [Criterion(name, False, math.inf, math.inf,
+                          limits.origin.get(name, "not assessed"), 0.0, 0, 0.0)
+                for name in names]
+    braked = limits.braked if limits.braked.size == n else np.ones(n, bool)
+    origin = limits.origin
+    rows = []
+    # mean utilised adhesion: stops from the calculation's reference speed on
+    mean = np.asarray(d.mean, float)
+    if not math.isfinite(d.initial_speed_kmh) or not np.isfinite(mean[braked]).any():
+        rows.append(Criterion("adhesion", False, math.inf, math.inf,
+                              "not assessed: no braked part of a stop (full application above "
+                              "5 km/h)", 0.0, 0, 0.0))
+    elif d.initial_speed_kmh < MEAN_ADHESION_MIN_INITIAL_KMH - 0.5:
+        k = int(np.nanargmax(np.where(braked, mean, np.nan)))
+        rows.append(Criterion("adhesion", False, math.inf, math.inf,
+                              f"not judged: a stop from {d.initial_speed_kmh:.0f} km/h, below the "
+                              f"{MEAN_ADHESION_MIN_INITIAL_KMH:.0f} km/h of mean-value brake "
+                              f"calculations (largest mean {mean[k]:.3f} at vehicle {k})",
+                              float(mean[k]), k, float(d.mean_end_time_s[k])))
+    else:
+        rows.append(_criterion("adhesion", mean, limits.adhesion_limit, d.mean_end_time_s,
+                               d.mean_end_speed_kmh, first("adhesion", n), 0,
+                               origin.get("adhesion", ""), assessed=braked & np.isfinite(mean)))
+    seen = np.asarray(d.at_speed_time_s) > 0.0
+    rows.append(_criterion("adhesion_at_speed", np.asarray(d.at_speed, float),
+                           np.full(n, ADHESION_AT_SPEED_LIMIT), np.asarray(d.at_speed_time_s),
+                           np.asarray(d.at_speed_kmh), first("adhesion_at_speed", n), 0,
+                           origin.get("adhesion_at_speed", ""), assessed=braked & seen))
+    low = np.asarray(d.low_speed, float)
+    seen = np.asarray(d.low_speed_time_s) > 0.0
+    note = ""
+    if (braked & seen).any():
+        k = int(np.argmax(np.where(braked & seen, low, -np.inf)))
+        wet = float(wet_rail_adhesion(d.low_speed_kmh[k]))
+        if low[k] > wet:
+            note = (f"above a wet rail's {wet:.3f} at {d.low_speed_kmh[k]:.2g} km/h: wheel "
+                    "slide likely on a wet rail")
+    rows.append(_criterion("adhesion_low_speed", low, np.full(n, math.inf),
+                           np.asarray(d.low_speed_time_s), np.asarray(d.low_speed_kmh),
+                           first("adhesion_low_speed", n), 0,
+                           origin.get("adhesion_low_speed", ""), assessed=braked & seen,
+                           note=note))
+    return rows
+
+
+def diagnostic_values(verdicts: Verdicts) -> dict:
+    """Key/values of the verdicts for a ``diagnostic_msgs/DiagnosticStatus`` (strings).
+
+    Parameters
+    ----------
+    verdicts : Verdicts
+        E.g. :meth:`Simulator.verdicts() <ltd_brake_ros.simulator.Simulator.verdicts>`.
+
+    Returns
+    -------
+    dict of str to str
+        ``verdicts`` (``PASS``/``WARN``/``FAIL``), then per criterion ``verdict_<name>``: its
+        status and, beyond a limit, how many couplers or vehicles and the worst.
+    """
+    out = {"verdicts": verdicts.status}
+    for c in verdicts.criteria:
+        text = c.status
+        if c.exceedances and c.rule.severity != "INFO":
+            text += (f": {len(c.exceedances)} {c.rule.element}(s) beyond the limit, worst "
+                     f"{c.exceedances[0].describe()}")
+        elif c.status == "INFO":
+            text += f": largest {c.worst_value:.3f} at {c.rule.element} {c.worst_number}" + (
+                f"; {c.note}" if c.note else "")
+        out[f"verdict_{c.name}"] = text
+    return out
+
+
+#: Campaign flag of each FAIL criterion.
+FLAG_NAMES = {"draft_strength": "draft_ok", "buff_strength": "buff_ok",
+              "endurable_lcf": "lcf_ok", "coupler_travel": "travel_ok", "adhesion": "adhesion_ok",
+              "standstill_holding": "holding_ok"}
+
+
+def flags(verdicts: Verdicts) -> dict:
+    """Campaign flags: ``<criterion>_ok`` for the FAIL criteria (True: passed).
+
+    Parameters
+    ----------
+    verdicts : Verdicts
+
+    Returns
+    -------
+    dict of str to bool
+        ``draft_ok``, ``buff_ok``, ``lcf_ok``, ``travel_ok``, ``adhesion_ok`` (the mean
+        utilised adhesion), ``holding_ok``; a criterion not assessed counts as passed.
+    """
+    return {FLAG_NAMES[c.name]: c.passed is not False for c in verdicts.criteria
+            if c.name in FLAG_NAMES}

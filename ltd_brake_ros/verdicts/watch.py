@@ -1,0 +1,346 @@
+"""Verdicts as a run goes: the simulator's watch, and the same records from a recording."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..physics.constants import KMH_PER_MS
+from ..physics.equations import jit
+from ..physics.kernel import FULL_APPLICATION, MEAN_ADHESION_MIN_SPEED_M_S
+from .rules import (ADHESION_AT_SPEED_LIMIT, ADHESION_SPEED_KMH, CRITERIA,
+                    MEAN_ADHESION_MIN_DISTANCE_M, STANDSTILL_SAMPLE_M_S, TrainLimits)
+from .table import VehicleDemand, Verdicts, judge
+
+__all__ = ["SampledDemand", "Watch"]
+
+
+class SampledDemand:
+    """Adhesion records of a run from its sampled state (a recording), sample by sample.
+
+    The same definitions as the simulator's (see the module), at the recorded instants: the
+    mean is distance-weighted over the intervals that end at a sample where the brake is
+    fully applied (its retarding force over Karwatzki's speed factor, for block brakes, at
+    least :data:`~.physics.kernel.FULL_APPLICATION` of the full scale) and the vehicle runs at
+    5 km/h or faster, the rotating masses' share subtracted; the instantaneous demand is
+    sampled while moving.
+
+    Parameters
+    ----------
+    limits : TrainLimits
+    """
+
+    def __init__(self, limits: TrainLimits):
+        self.limits = limits
+        n = limits.adhesion_limit.size
+        self.demand = VehicleDemand.empty(n)
+        self.first_at_speed_s = np.full(n, -1.0)
+        self._work = np.zeros(n)
+        self._dist = np.zeros(n)
+        self._prev: tuple | None = None
+
+    def command(self, speed_m_s: float) -> None:
+        """The brake command, with the head at ``speed_m_s`` [m/s]."""
+        if not math.isfinite(self.demand.initial_speed_kmh):
+            self.demand.initial_speed_kmh = abs(float(speed_m_s)) * KMH_PER_MS
+
+    def add(self, t: float, speed_m_s, position_m, brake_force_N) -> None:
+        """One sample of every vehicle's speed [m/s], position [m] and brake force [N]."""
+        lim, d = self.limits, self.demand
+        v = np.asarray(speed_m_s, float)
+        if v.shape != lim.weight_N.shape:
+            return
+        f = np.abs(np.asarray(brake_force_N, float))
+        _scan_vehicles(t, v, f, lim.weight_N, ADHESION_SPEED_KMH / KMH_PER_MS,
+                       STANDSTILL_SAMPLE_M_S, ADHESION_AT_SPEED_LIMIT, d.at_speed,
+                       d.at_speed_time_s, d.at_speed_kmh, self.first_at_speed_s, d.low_speed,
+                       d.low_speed_time_s, d.low_speed_kmh)
+        fast = np.abs(v) >= MEAN_ADHESION_MIN_SPEED_M_S
+        d.mean_end_time_s[fast] = t
+        d.mean_end_speed_kmh[fast] = np.abs(v[fast]) * KMH_PER_MS
+        x = np.asarray(position_m, float)
+        if x.shape != v.shape:
+            return
+        if self._prev is not None and lim.full_scale_N.size == v.size:
+            xp, vp = self._prev
+            v_kmh = np.abs(v) * KMH_PER_MS
+            kar = np.where(lim.blocks, 0.6 * (v_kmh + 100.0) / (5.0 * v_kmh + 100.0), 1.0)
+            on = fast & (lim.full_scale_N > 0.0) & (f / kar >= FULL_APPLICATION * lim.full_scale_N)
+            dx = x - xp
+            self._work += np.where(on, f * dx + lim.rotating_mass_kg * 0.5 * (v * v - vp * vp),
+                                   0.0)
+            self._dist += np.where(on, dx, 0.0)
+        self._prev = (x, v)
+
+    def result(self) -> VehicleDemand:
+        """The records so far."""
+        d = self.demand
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d.mean = np.where(self._dist >= MEAN_ADHESION_MIN_DISTANCE_M,
+                              self._work / self._dist / self.limits.weight_N, np.nan)
+        d.mean_distance_m = self._dist.copy()
+        return d
+
+
+@jit
+def _scan(t0, v0, t1, v1, nc, peak_draft, t_draft, peak_buff, t_buff, draft_lim, buff_lim,
+          lcf_lim, seen_draft, seen_buff, draft_kmh, buff_kmh, first_draft, first_buff,
+          first_lcf):
+    """The couplers' part of one chunk of :class:`Watch` in one pass (arrays updated in
+    place). Returns the number of limits exceeded for the first time."""
+    span = t1 - t0
+    new = 0
+    for j in range(nc):
+        p = peak_draft[j]
+        if p > draft_lim[j]:
+            if p > seen_draft[j]:  # the worst moved into this chunk: the head's speed then
+                seen_draft[j] = p
+                a = (t_draft[j] - t0) / span if span > 0.0 else 1.0
+                draft_kmh[j] = (v0 + (v1 - v0) * a) * KMH_PER_MS
+            if first_draft[j] < 0.0:
+                first_draft[j] = t_draft[j]
+                new += 1
+        b = -peak_buff[j]
+        if b > buff_lim[j] or b > lcf_lim[j]:
+            if b > seen_buff[j]:
+                seen_buff[j] = b
+                a = (t_buff[j] - t0) / span if span > 0.0 else 1.0
+                buff_kmh[j] = (v0 + (v1 - v0) * a) * KMH_PER_MS
+            if b > buff_lim[j] and first_buff[j] < 0.0:
+                first_buff[j] = t_buff[j]
+                new += 1
+            if b > lcf_lim[j] and first_lcf[j] < 0.0:
+                first_lcf[j] = t_buff[j]
+                new += 1
+    return new
+
+
+@jit
+def _scan_vehicles(t1, speed, brake, weight, v_split, v_rest, limit, at_speed, at_t, at_kmh,
+                   first_at, low, low_t, low_kmh):
+    """The vehicles' part of one chunk of :class:`Watch`: instantaneous adhesion demand at
+    the chunk's end, above and below ``v_split`` [m/s], never at rest (``v_rest``). Returns
+    the number of vehicles beyond ``limit`` at speed for the first time."""
+    new = 0
+    for i in range(brake.shape[0]):
+        v = abs(speed[i])
+        if v <= v_rest or weight[i] <= 0.0:
+            continue
+        d = abs(brake[i]) / weight[i]
+        if v > v_split:
+            if d > at_speed[i]:
+                at_speed[i] = d
+                at_t[i] = t1
+                at_kmh[i] = v * KMH_PER_MS
+            if d > limit and first_at[i] < 0.0:
+                first_at[i] = t1
+                new += 1
+        elif d > low[i]:
+            low[i] = d
+            low_t[i] = t1
+            low_kmh[i] = v * KMH_PER_MS
+    return new
+
+
+class Watch:
+    """Follows a running simulation for :class:`~ltd_brake_ros.simulator.Simulator`.
+
+    Coupler peaks and excursions are the kernel's running extremes, and so is each vehicle's
+    brake work while fully applied (the mean utilised adhesion); once per chunk one compiled
+    pass (:meth:`check`) adds the first exceedance of each limit, the head's speed at each
+    exceeding coupler's worst (interpolated within the chunk) and each vehicle's largest
+    instantaneous adhesion demand at the chunk's end, above and below 30 km/h.
+
+    Parameters
+    ----------
+    limits : TrainLimits
+    standstill_m_s : float, optional
+        Vehicles this slow are at rest: no adhesion demand is sampled from them [m/s].
+    """
+
+    def __init__(self, limits: TrainLimits, standstill_m_s: float = 1e-3):
+        self.limits = limits
+        nc, n = limits.draft_strength_N.size, limits.adhesion_limit.size
+        self.first_time_s = {name: np.full(nc if CRITERIA[name].element == "coupler" else n,
+                                           -1.0) for name in CRITERIA}
+        self._reported = {name: np.zeros(a.size, bool) for name, a in self.first_time_s.items()}
+        self.draft_speed_kmh = np.zeros(nc)
+        self.buff_speed_kmh = np.zeros(nc)
+        self._draft_seen = np.zeros(nc)
+        self._buff_seen = np.zeros(nc)
+        self.demand = VehicleDemand.empty(n)
+        self.standstill_m_s = float(standstill_m_s)
+        self._at_speed_force_N = ADHESION_AT_SPEED_LIMIT * limits.weight_N
+        # when each vehicle's braked part ended (its speed fell below 5 km/h), and at what speed
+        self._mean_end_t = np.zeros(n)
+        self._mean_end_kmh = np.zeros(n)
+        # at rest after the stop: each vehicle's worst force to hold against what it holds
+        self._hold: tuple | None = None
+
+    def copy(self) -> "Watch":
+        """An independent copy (the limits are shared: never mutated)."""
+        new = object.__new__(Watch)
+        for k, v in self.__dict__.items():
+            if isinstance(v, dict):
+                v = {n: a.copy() for n, a in v.items()}
+            elif isinstance(v, np.ndarray):
+                v = v.copy()
+            elif isinstance(v, tuple) and k == "_hold":
+                v = tuple(a.copy() for a in v)
+            elif isinstance(v, VehicleDemand):
+                v = VehicleDemand(*(x.copy() if isinstance(x, np.ndarray) else x
+                                    for x in v.__dict__.values()))
+            new.__dict__[k] = v
+        return new
+
+    def check(self, t0: float, v0: float, t1: float, v1: float, kin, vehicle_speed_m_s,
+              brake_force_N) -> list[tuple]:
+        """Take one chunk into account.
+
+        Parameters
+        ----------
+        t0, v0, t1, v1 : float
+            Start and end of the chunk [s] and the head's speed then [m/s].
+        kin : KinematicState
+            The kernel's state at the end of the chunk (running coupler peaks).
+        vehicle_speed_m_s, brake_force_N : ndarray
+            Each vehicle's speed [m/s] and air-brake force [N] at the end of the chunk.
+
+        Returns
+        -------
+        list of (time_s, detail)
+            Limits exceeded for the first time in this chunk (see :meth:`event_detail`).
+        """
+        lim, first = self.limits, self.first_time_s
+        new = _scan(t0, v0, t1, v1, self._draft_seen.size, kin.peak_draft_N,
+                    kin.peak_draft_time_s, kin.peak_buff_N, kin.peak_buff_time_s,
+                    lim.draft_strength_N, lim.buff_strength_N, lim.endurable_lcf_N,
+                    self._draft_seen, self._buff_seen, self.draft_speed_kmh,
+                    self.buff_speed_kmh, first["draft_strength"], first["buff_strength"],
+                    first["endurable_lcf"])
+        n = lim.weight_N.size
+        if n == vehicle_speed_m_s.size:
+            # the kernel keeps each vehicle's brake-force peak above 30 km/h: first seen
+            # beyond the limit at the peak that the chunk's end shows
+            first_at = first["adhesion_at_speed"]
+            over = (kin.peak_brake_fast_N[:n] > self._at_speed_force_N) & (first_at < 0.0)
+            if over.any():
+                first_at[over] = kin.peak_brake_fast_time_s[:n][over]
+                new += int(over.sum())
+            # the end of each vehicle's braked part: the last chunk end it ran at 5 km/h+
+            fast = np.abs(vehicle_speed_m_s) >= MEAN_ADHESION_MIN_SPEED_M_S
+            if fast.any():
+                self._mean_end_t[fast] = t1
+                self._mean_end_kmh[fast] = np.abs(vehicle_speed_m_s[fast]) * KMH_PER_MS
+        return self._events(kin) if new else []
+
+    def at_rest(self, t: float, need_N, capacity_N) -> list[tuple]:
+        """Take the train at rest into account: each vehicle's force to hold [N] (couplers,
+        grade, other external forces) against what it holds [N], at time ``t`` [s].
+
+        Returns
+        -------
+        list of (time_s, detail)
+            Vehicles first seen needing more than they hold.
+        """
+        need = np.abs(np.asarray(need_N, float))
+        cap = np.asarray(capacity_N, float)
+        if self._hold is None:
+            self._hold = (need.copy(), cap.copy(), np.full(need.size, float(t)))
+        h_need, h_cap, h_t = self._hold
+        worse = need * h_cap > h_need * cap  # need / cap grew (cap > 0 for any vehicle)
+        h_need[worse], h_cap[worse], h_t[worse] = need[worse], cap[worse], t
+        first = self.first_time_s["standstill_holding"]
+        new = (need > cap) & (first < 0.0)
+        out = []
+        for i in np.flatnonzero(new):
+            first[i] = t
+            out.append((float(t), {"criterion": "standstill_holding", "vehicle": int(i),
+                                   "force_kN": float(need[i]) / 1e3,
+                                   "limit_kN": float(cap[i]) / 1e3, "speed_kmh": 0.0}))
+        return out
+
+    def start(self, speed_m_s: float) -> None:
+        """The brake command came, with the head at ``speed_m_s`` [m/s]."""
+        if not math.isfinite(self.demand.initial_speed_kmh):
+            self.demand.initial_speed_kmh = abs(float(speed_m_s)) * KMH_PER_MS
+
+    def _events(self, kin) -> list[tuple]:
+        """The limits first exceeded since the last call, as (time_s, detail)."""
+        out = []
+        nc = self._draft_seen.size
+        d = self.demand_of(kin)
+        values = {"draft_strength": kin.peak_draft_N[:nc], "buff_strength": -kin.peak_buff_N[:nc],
+                  "endurable_lcf": -kin.peak_buff_N[:nc], "adhesion_at_speed": d.at_speed}
+        speeds = {"draft_strength": self.draft_speed_kmh, "buff_strength": self.buff_speed_kmh,
+                  "endurable_lcf": self.buff_speed_kmh, "adhesion_at_speed": d.at_speed_kmh}
+        for name in values:
+            first, done = self.first_time_s[name], self._reported[name]
+            for j in np.flatnonzero((first >= 0.0) & ~done):
+                done[j] = True
+                out.append((float(first[j]), self.event_detail(
+                    name, int(j), float(values[name][j]), float(self.limits.of(name)[j]),
+                    float(speeds[name][j]))))
+        return out
+
+    @staticmethod
+    def event_detail(name: str, index: int, value: float, limit: float,
+                     speed_kmh: float) -> dict:
+        """Detail of a ``limit_exceeded`` event (units in the keys)."""
+        rule = CRITERIA[name]
+        number = index + (1 if rule.element == "coupler" else 0)
+        if rule.unit == "kN":
+            return {"criterion": name, rule.element: number, "force_kN": value / 1e3,
+                    "limit_kN": limit / 1e3, "speed_kmh": speed_kmh}
+        return {"criterion": name, rule.element: number, "demand": value, "limit": limit,
+                "speed_kmh": speed_kmh}
+
+    def demand_of(self, kin) -> VehicleDemand:
+        """The adhesion records so far, from the kernel's running records: the brake's work
+        while fully applied (the mean) and its peaks above and below 30 km/h."""
+        d = self.demand
+        n = d.at_speed.size
+        w = self.limits.weight_N
+        work = np.asarray(kin.applied_work_J[:n], float)
+        dist = np.asarray(kin.applied_distance_m[:n], float)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = np.where(dist >= MEAN_ADHESION_MIN_DISTANCE_M, work / dist / w, np.nan)
+        return VehicleDemand(mean, dist, self._mean_end_t, self._mean_end_kmh,
+                             d.initial_speed_kmh, kin.peak_brake_fast_N[:n] / w,
+                             kin.peak_brake_fast_time_s[:n].copy(),
+                             kin.peak_brake_fast_speed_m_s[:n] * KMH_PER_MS,
+                             kin.peak_brake_slow_N[:n] / w,
+                             kin.peak_brake_slow_time_s[:n].copy(),
+                             kin.peak_brake_slow_speed_m_s[:n] * KMH_PER_MS)
+
+    def verdicts(self, kin, limits: TrainLimits | None = None) -> Verdicts:
+        """The verdicts table so far.
+
+        Parameters
+        ----------
+        kin : KinematicState
+            The kernel's state (running coupler peaks and excursions, brake work).
+        limits : TrainLimits, optional
+            Other limits to judge the same run by (default: the watched ones); first times
+            and coupler speeds are then known only where the watched limits were exceeded too.
+
+        Returns
+        -------
+        Verdicts
+        """
+        nc = self._draft_seen.size
+        other = limits is not None and limits is not self.limits
+        lim = limits or self.limits
+        beyond = np.asarray(kin.beyond_range_m[:nc], float) * 1e3
+        t_beyond = np.asarray(kin.beyond_range_time_s[:nc], float)
+        return judge(lim, peak_draft_N=kin.peak_draft_N[:nc],
+                     peak_draft_time_s=kin.peak_draft_time_s[:nc],
+                     draft_speed_kmh=self.draft_speed_kmh, peak_buff_N=kin.peak_buff_N[:nc],
+                     peak_buff_time_s=kin.peak_buff_time_s[:nc],
+                     buff_speed_kmh=self.buff_speed_kmh,
+                     demand=self.demand_of(kin) if lim.adhesion_limit.size else None,
+                     travel_beyond_mm=beyond, travel_time_s=np.maximum(t_beyond, 0.0),
+                     travel_speed_kmh=np.full(nc, math.nan), holding=self._hold,
+                     first_time_s=None if other else dict(
+                         self.first_time_s, coupler_travel=np.asarray(
+                             kin.out_of_range_time_s[:nc], float)))
