@@ -141,7 +141,7 @@ def test_command_line_tolerance(capsys):
 def test_error_estimate_is_exact_for_a_cubic_speed_history(w):
     # v(t) = t^3 + t: the leading error terms of BDF2 and of the predictor are its only ones,
     # so Milne's estimate (1+w)/(2+3w) |u - q| equals the step's true local error
-    from ltd_brake_ros.physics.kernel import _error_ratio
+    from ltd_brake_ros.physics.step_control import _error_ratio
 
     def v(t):
         return t ** 3 + t
@@ -173,7 +173,7 @@ def test_retry_after_a_rejection_holds_the_tolerance_at_a_kink(ratio):
     # a kink inside the step (an Eq. 3 switch, an end stop) makes the local error fall in
     # proportion to the step, smooth motion with its cube: the retry must hold the tolerance
     # in both cases, else the controller cycles between rejection and retry
-    from ltd_brake_ros.physics.kernel import MAX_SHRINK, _step_factor
+    from ltd_brake_ros.physics.step_control import MAX_SHRINK, _step_factor
 
     for order in (1.0, 2.0):
         f = _step_factor(ratio, order, True, False)
@@ -185,7 +185,7 @@ def test_retry_after_a_rejection_holds_the_tolerance_at_a_kink(ratio):
 
 
 def test_step_growth_is_bounded_and_waits_after_a_rejection():
-    from ltd_brake_ros.physics.kernel import MAX_GROWTH, _step_factor
+    from ltd_brake_ros.physics.step_control import MAX_GROWTH, _step_factor
 
     assert _step_factor(0.0, 2.0, False, False) == MAX_GROWTH    # no estimate yet
     assert _step_factor(1e-6, 2.0, False, False) == MAX_GROWTH
@@ -199,7 +199,7 @@ def test_step_growth_is_bounded_and_waits_after_a_rejection():
 def test_next_step_is_the_controller_capped_at_the_nominal_step():
     # _next_step skips the controller's power for a whole step with a small estimate: the
     # result must be the rule's, whatever the step, estimate, order or rejection before
-    from ltd_brake_ros.physics.kernel import GROWS_SURELY, _next_step, _step_factor
+    from ltd_brake_ros.physics.step_control import GROWS_SURELY, _next_step, _step_factor
 
     h = 0.01
     for order in (1.0, 2.0):

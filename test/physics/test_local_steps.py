@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from ltd_brake_ros.inputs import consist_from_mapping, get_scenario
-from ltd_brake_ros.physics import kernel
+from ltd_brake_ros.physics import kernel, local_steps
 from ltd_brake_ros.simulator import Commands, Simulator
 
 
@@ -93,31 +93,31 @@ def test_windows_take_margins_end_outside_the_band_and_merge():
     err = np.zeros(n)
     windows = np.zeros((n, 2), np.int64)
     band = 1e-4
-    m = kernel.LOCAL_MARGIN
+    m = local_steps.LOCAL_MARGIN
     err[10] = 3.0
-    assert kernel._find_windows(err, v, u, band, windows, n) == 1
+    assert local_steps._find_windows(err, v, u, band, windows, n) == 1
     assert tuple(windows[0]) == (10 - m, 10 + m)
     # a coupler inside the band at a window's end is taken in: it ends at the next one outside
     v2 = v.copy()
     v2[10 - m - 1] = v2[10 - m]  # coupler between 10-m-1 and 10-m rigid
-    assert kernel._find_windows(err, v2, v2, band, windows, n) == 1
+    assert local_steps._find_windows(err, v2, v2, band, windows, n) == 1
     assert tuple(windows[0]) == (10 - m - 1, 10 + m)
     # two groups closer than twice the margin: one window; farther apart: two
     err[10 + 2 * m + 1] = 2.0
-    assert kernel._find_windows(err, v, u, band, windows, n) == 1
+    assert local_steps._find_windows(err, v, u, band, windows, n) == 1
     assert tuple(windows[0]) == (10 - m, 10 + 3 * m + 1)
     err[:] = 0.0
     err[[5, 30]] = 2.0
-    assert kernel._find_windows(err, v, u, band, windows, n) == 2
+    assert local_steps._find_windows(err, v, u, band, windows, n) == 2
     assert tuple(windows[0]) == (5 - m, 5 + m) and tuple(windows[1]) == (30 - m, 30 + m)
     # at the ends of the train, and beyond the budget of vehicles: none
     err[:] = 0.0
     err[[0, n - 1]] = 2.0
-    assert kernel._find_windows(err, v, u, band, windows, n) == 2
+    assert local_steps._find_windows(err, v, u, band, windows, n) == 2
     assert tuple(windows[0]) == (0, m) and tuple(windows[1]) == (n - 1 - m, n - 1)
-    assert kernel._find_windows(err, v, u, band, windows, 2 * m + 1) == 0
+    assert local_steps._find_windows(err, v, u, band, windows, 2 * m + 1) == 0
     err[:] = 1.0  # at the tolerance: no window
-    assert kernel._find_windows(err, v, u, band, windows, n) == 0
+    assert local_steps._find_windows(err, v, u, band, windows, n) == 0
 
 
 def test_kth_largest():
@@ -125,7 +125,7 @@ def test_kth_largest():
     values = rng.random(500)
     top = np.empty(500)
     for k in (1, 2, 15, 500):
-        assert kernel._largest(values, k, top) == np.sort(values)[::-1][k - 1]
+        assert local_steps._largest(values, k, top) == np.sort(values)[::-1][k - 1]
 
 
 @pytest.mark.parametrize("s", [0.0, 0.3, 1.0])
@@ -134,6 +134,6 @@ def test_prescribed_motion_is_the_cubic_through_the_step_ends(s):
     x = lambda t: 1.0 + 2.0 * t - 3.0 * t**2 + 0.5 * t**3  # noqa: E731
     dx = lambda t: 2.0 - 6.0 * t + 1.5 * t**2  # noqa: E731
     h = 0.8
-    xs, vs = kernel._hermite(x(0.0), dx(0.0), x(h), dx(h), h, s)
+    xs, vs = local_steps._hermite(x(0.0), dx(0.0), x(h), dx(h), h, s)
     assert math.isclose(xs, x(s * h), abs_tol=1e-12)
     assert math.isclose(vs, dx(s * h), abs_tol=1e-12)

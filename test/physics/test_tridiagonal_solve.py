@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from ltd_brake_ros.physics.kernel import _solve_tridiagonal
+from ltd_brake_ros.physics.newton import _solve_tridiagonal
 
 
 def dense(dvec, cj):
