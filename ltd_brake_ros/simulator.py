@@ -102,6 +102,14 @@ class Commands:
                 raise ValueError(f"{name} must be between {lo:g} and {hi:g}, got {value}")
 
 
+def _distinct(value: float, limit: float, digits: int) -> str:
+    """``value`` with ``digits`` decimals, or as many more as it takes not to read as the
+    ``limit`` it exceeds (up to 9)."""
+    while digits < 9 and f"{value:.{digits}f}" == f"{limit:.{digits}f}":
+        digits += 1
+    return f"{value:.{digits}f}"
+
+
 @dataclass(frozen=True)
 class Event:
     """Something that happened during the run.
@@ -135,8 +143,9 @@ class Event:
                     "there are extrapolated with the end slopes")
         if self.kind == "limit_exceeded":
             element = "coupler" if "coupler" in d else "vehicle"
-            what = (f"{d['force_kN']:.0f} kN, limit {d['limit_kN']:.0f} kN" if "force_kN" in d
-                    else f"demand {d['demand']:.3f}, limit {d['limit']:.3f}")
+            what = (f"{_distinct(d['force_kN'], d['limit_kN'], 0)} kN, limit "
+                    f"{d['limit_kN']:.0f} kN" if "force_kN" in d else
+                    f"demand {_distinct(d['demand'], d['limit'], 3)}, limit {d['limit']:.3f}")
             return (f"t = {self.time_s:.2f} s: {element} {d[element]} beyond its "
                     f"{d['criterion'].replace('_', ' ')} limit ({what}) at "
                     f"{d['speed_kmh']:.1f} km/h")

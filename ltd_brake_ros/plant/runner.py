@@ -169,6 +169,7 @@ class PlantRunner:
         self._next_reject_log: dict[str, float] = {}
         self._auto_brake_done = False
         self._lut_warned = False
+        self._limits_logged: set[str] = set()  # criteria whose first exceedance was logged
         self._jobs: queue.SimpleQueue[Job] = queue.SimpleQueue()
         self._wake = threading.Event()
         self._quit = threading.Event()
@@ -460,7 +461,9 @@ class PlantRunner:
             self.stamp_ns = round(snap.time_s * 1e9)
         log = self._log
         for event in snap.events:
-            if event.kind != "coupler_out_of_lut":
+            if event.kind == "limit_exceeded":
+                self._log_limit(event)
+            elif event.kind != "coupler_out_of_lut":
                 log.info(event.describe())
             elif self._lut_warned:
                 log.debug(event.describe())
@@ -477,6 +480,22 @@ class PlantRunner:
             log.info(f"{s.shutdown_after_stop_s:g} s after the stop; shutting down")
             self._finish("shutdown_after_stop_s reached")
         return True
+
+    def _log_limit(self, event) -> None:
+        """One line per criterion and run at WARN (ERROR for a force beyond a strength); every
+        further coupler or vehicle beyond the same limit at DEBUG, all of them counted in
+        /diagnostics (``verdict_<criterion>``)."""
+        name = event.detail.get("criterion", "")
+        if name in self._limits_logged:
+            self._log.debug(event.describe())
+            return
+        self._limits_logged.add(name)
+        text = (f"{event.describe()}; further couplers or vehicles beyond this limit are logged "
+                f"at debug level and counted in /diagnostics (verdict_{name})")
+        if name in ("draft_strength", "buff_strength", "coupler_travel"):
+            self._log.error(text)
+        else:
+            self._log.warning(text)
 
     def _finish(self, reason: str) -> None:
         self.finish_reason = reason
@@ -553,6 +572,7 @@ class PlantRunner:
         self.commands = Commands()
         self._auto_brake_done = False
         self._lut_warned = False
+        self._limits_logged = set()
         self.failure = None
         self._publish(snap)
         now = self._clock.monotonic()
