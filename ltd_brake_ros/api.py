@@ -389,6 +389,17 @@ class RunResult:
         return self.timeseries.to_xarray()
 
 
+def _announce_compile() -> None:
+    """Say on stderr that the simulation kernels compile now (first run after installing)."""
+    from .simulator import kernels_cached
+
+    if kernels_cached() is False:
+        import sys
+
+        print("ltd_brake_ros: compiling the simulation kernels (first run only; about a minute "
+              "on two cores)", file=sys.stderr, flush=True)
+
+
 def _attrs(sim: Simulator, speed_kmh: float) -> dict:
     return {"consist": sim.consist.name, "initial_speed_kmh": float(speed_kmh),
             "step_s": sim.step_s, "tolerance_m_s": float(sim.tolerance_m_s)}
@@ -428,6 +439,7 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
     SimulationError
         A step failed, or the train did not stop within ``max_time_s``.
     """
+    _announce_compile()
     sampler = _Sampler()
     start = time.perf_counter()
     sim = emergency_run(consist, speed_kmh, params, coupler, track, step_s=step_s,
@@ -462,6 +474,7 @@ def run_commands(consist: Consist, speed_kmh: float, commands, *,
         ``summary`` is None when the train did not stop.
     """
     script = commands if isinstance(commands, CommandScript) else load_commands(commands)
+    _announce_compile()
     sampler = _Sampler()
     start = time.perf_counter()
     sim = scripted_run(consist, speed_kmh, script, params, coupler, track, step_s=step_s,

@@ -108,7 +108,12 @@ def test_plotjuggler_layout_curves_are_joints_the_plant_publishes():
         assert types.get(topic) == "sensor_msgs/msg/JointState", curve
         assert joint in _joint_names(topic), f"{curve}: no joint {joint} in scenario 6"
         assert field in ("position", "velocity", "effort"), curve
-    subscribed = [t.get("name") for t in root.iter("topic")]
-    assert subscribed and set(subscribed) <= set(types)
+    # plotjuggler-ros-plugins' subscriber reads its preselection from one attribute,
+    # <selected_topics value="a;b"/>, not from child elements
+    selected = [e for e in root.iter("selected_topics")]
+    assert len(selected) == 1 and not list(selected[0])
+    subscribed = selected[0].get("value", "").split(";")
+    assert subscribed and all(subscribed) and set(subscribed) <= set(types)
+    assert {"/vehicles/state", "/couplers/state"} <= set(subscribed)
     plugins = {p.get("ID") for p in root.iter("plugin")}
     assert {"DataLoad MCAP", "ROS2 Topic Subscriber"} <= plugins
