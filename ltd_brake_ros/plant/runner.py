@@ -589,7 +589,8 @@ class PlantRunner:
         self.paused = pause
         text = f"{'paused' if pause else 'running'} at t = {self.sim.time_s:.3f} s"
         if self.settings.lockstep:
-            text += " (lock-step mode: the plant advances only on ~/step)"
+            text += (" (lock-step mode: ~/step is refused until ~/pause false)" if pause else
+                     " (lock-step mode: the plant advances only on ~/step)")
         return True, text
 
     def _step(self, chunks: int) -> tuple[bool, str]:
@@ -598,6 +599,10 @@ class PlantRunner:
         if not (self.settings.lockstep or self.paused):
             return False, "the plant is free-running: pause it (~/pause) or start it with " \
                           "lockstep:=true to step it"
+        if self.settings.lockstep and self.paused:
+            # a paused lock-step plant holds: a controller's steps do not carry it on
+            return False, (f"paused at t = {self.sim.time_s:.3f} s: ~/step is refused until "
+                           "~/pause false")
         if self.failure:
             return False, f"simulation failed: {self.failure}; call ~/reset"
         if self.finished.is_set():

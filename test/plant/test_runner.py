@@ -242,6 +242,21 @@ def test_pause_stops_the_plant_step_advances_it_and_resume_restarts_the_schedule
         "running at t = 0.000 s (lock-step mode: the plant advances only on ~/step)"
 
 
+def test_a_paused_lock_step_plant_refuses_steps_until_resumed():
+    plant = make_plant(lockstep=True, steps_per_call=2)
+    runner = plant.runner
+    assert plant.request(runner.step())[1].startswith("advanced 2 chunk(s) to t = 0.040 s")
+    assert plant.request(runner.pause(True)) == \
+        (True, "paused at t = 0.040 s (lock-step mode: ~/step is refused until ~/pause false)")
+    published = len(plant.states)
+    for _ in range(3):  # a controller keeps stepping: the plant holds
+        ok, text = plant.request(runner.step())
+        assert not ok and text.startswith("paused at t = 0.040 s")
+    assert len(plant.states) == published and runner.sim.time_s == pytest.approx(0.04)
+    assert plant.request(runner.pause(False))[0]
+    assert plant.request(runner.step())[1].startswith("advanced 2 chunk(s) to t = 0.080 s")
+
+
 # --------------------------------------------------------------------------- run policy
 
 
