@@ -15,8 +15,8 @@ from ..run_spec import RunSpec, RunSpecError, resolve_run_spec
 from ..simulator import SimulationError, Simulator
 from .settings import PlantSettings, StartupError
 
-__all__ = ["RUN_SPEC_PARAMETERS", "PlantRun", "reset_run", "load_plant_inputs",
-           "build_simulator", "plant_settings"]
+__all__ = ["RUN_INPUT_PARAMETERS", "RUN_SPEC_PARAMETERS", "PlantRun", "reset_run",
+           "load_plant_inputs", "build_simulator", "check_run_inputs", "plant_settings"]
 
 #: Node parameter of each run-spec input, for error messages.
 RUN_SPEC_PARAMETERS = {"consist": "consist", "speed_kmh": "initial_speed_kmh",
@@ -55,6 +55,34 @@ def load_plant_inputs(consist: str, initial_speed_kmh: float, brake_params_file:
                                 track_file=track_file, start_chainage_m=start_chainage_m)
     except RunSpecError as exc:
         raise StartupError(RUN_SPEC_PARAMETERS[exc.input_name], exc.detail) from None
+
+
+#: Node parameters that name the train and its inputs (validated together when one is set).
+RUN_INPUT_PARAMETERS = ("consist", "initial_speed_kmh", "brake_params_file", "coupler_lut_file",
+                        "track_file", "start_chainage_m")
+
+
+def check_run_inputs(values: dict[str, Any]) -> str | None:
+    """Why the run-input parameter ``values`` do not make a train, or None.
+
+    What a reset would build from them is loaded and checked (files parse, the scenario
+    exists, the combination is valid); nothing is compiled or started.
+
+    Parameters
+    ----------
+    values : dict
+        Every name of :data:`RUN_INPUT_PARAMETERS` with its value.
+
+    Returns
+    -------
+    str or None
+        ``"<parameter>: <reason>"``.
+    """
+    try:
+        load_plant_inputs(*(values[name] for name in RUN_INPUT_PARAMETERS))
+    except StartupError as exc:
+        return f"{exc.parameter}: {exc.reason}"
+    return None
 
 
 def build_simulator(spec: RunSpec, chunk_s: float,

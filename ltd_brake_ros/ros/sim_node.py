@@ -63,7 +63,8 @@ from ..plant.clock_policy import (CLOCK_WATCH_PERIOD_S, ClockWatch,  # noqa: E40
                                   other_publishers, resolve_clock)
 from ..plant.diagnostics import PlantStatus, format_fixed  # noqa: E402
 from ..plant.recorder import Recorder  # noqa: E402
-from ..plant.run import PlantRun, reset_run  # noqa: E402
+from ..plant.run import (RUN_INPUT_PARAMETERS, PlantRun, check_run_inputs,  # noqa: E402
+                         reset_run)
 from ..plant.runner import PlantRunner  # noqa: E402
 from ..simulator import kernels_cached  # noqa: E402
 from ..recording.bag import message_class, type_name  # noqa: E402
@@ -172,8 +173,7 @@ class SimNode(Node):
         self.create_service(SetBool, "~/pause",
                             lambda q, r: self._reply(self.runner.pause(q.data), r))
         self.create_service(Trigger, "~/step", self._step_service)
-        self.add_on_set_parameters_callback(
-            lambda params: check_run_time_change(params, self.runner.real_time_factor))
+        self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         log.info(self.plant_run.start_line(self.runner.settings, self.clock_mode))
 
@@ -242,6 +242,18 @@ class SimNode(Node):
         response.success, response.message, self.plant_run = reset_run(
             self.runner, self.plant_run, values, prepare, self.get_logger())
         return response
+
+    def _check_parameters(self, params):
+        """Refuse at ``param set`` what a reset could not use, with the reason."""
+        result = check_run_time_change(params, self.runner.real_time_factor)
+        changed = {p.name: p.value for p in params if p.name in RUN_INPUT_PARAMETERS}
+        if result.successful and changed:
+            values = {name: self.get_parameter(name).value for name in RUN_INPUT_PARAMETERS}
+            problem = check_run_inputs(values | changed)
+            if problem:
+                result.successful = False
+                result.reason = f"{problem}; not set, the values in force stay"
+        return result
 
     def _apply_parameters(self, params) -> None:
         for p in params:

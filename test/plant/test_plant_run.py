@@ -75,3 +75,16 @@ def test_reset_restarts_rebuilds_or_refuses_and_the_old_run_goes_on(run):
         assert log.at("info")[-1] == f"new run: {new.describe()}"
     finally:
         runner.close()
+
+
+def test_run_inputs_are_checked_together_as_a_reset_would_use_them():
+    from ltd_brake_ros.plant.run import check_run_inputs
+
+    good = {"consist": "scenario_6", "initial_speed_kmh": -1.0, "brake_params_file": "",
+            "coupler_lut_file": "", "track_file": "", "start_chainage_m": 0.0}
+    assert check_run_inputs(good) is None
+    assert check_run_inputs(dict(good, consist="scenario_99")).startswith("consist:")
+    problem = check_run_inputs(dict(good, consist="consists/e402b_10_shimmns_80t.yaml"))
+    assert problem.startswith("initial_speed_kmh:")  # a file brings no speed of its own
+    assert check_run_inputs(dict(good, coupler_lut_file="nope.yaml")).startswith(
+        "coupler_lut_file:")

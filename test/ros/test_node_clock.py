@@ -191,11 +191,14 @@ def test_run_parameters_take_effect_at_the_next_reset_and_a_bad_run_is_refused(
     consist = get_scenario(1).consist()
     probe.spin_until(lambda: len(speeds[-1].data) == consist.n, 10, "the new train's state")
     np.testing.assert_allclose(speeds[-1].data, 50.0 / 3.6)
-    # a run that cannot be built: the reset is refused with the reason, the old run goes on
-    probe.set_parameters(name, consist="no_such_scenario")
-    reply = probe.call(Trigger, f"{name}/reset", Trigger.Request())
-    assert not reply.success and "parameter consist" in reply.message \
-        and "unknown scenario" in reply.message and "goes on" in reply.message, reply.message
+    # a run that cannot be built is refused at param set, with the reason; the values in
+    # force stay (param get reads them) and the run goes on
+    result, = probe.set_parameters(name, consist="no_such_scenario")
+    assert not result.successful and "consist" in result.reason \
+        and "unknown scenario" in result.reason, result.reason
+    assert node.get_parameter("consist").value == "scenario_1"
+    result, = probe.set_parameters(name, brake_params_file="no/such/file.yaml")
+    assert not result.successful and "brake_params_file" in result.reason, result.reason
     reply = probe.call(Trigger, f"{name}/step", Trigger.Request())
     assert reply.success and "t = 0.020 s" in reply.message, reply.message
     assert node.runner.sim.n == consist.n
