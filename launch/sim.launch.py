@@ -42,8 +42,19 @@ PARAMETER_ARGUMENTS = {
                        "real_time_factor 1)"),
     "publish_every": ("publish_every", "int",
                       "Publish (and record) the state after every N-th chunk, for faster runs"),
-    "lock_step": ("lockstep", "bool",
-                  "true: advance only when <namespace>/sim_node/step is called"),
+    "lockstep": ("lockstep", "bool",
+                 "true: advance only when <namespace>/sim_node/step is called"),
+    "steps_per_call": ("steps_per_call", "int", "Chunks advanced by one ~/step call"),
+    "brake_params_file": ("brake_params_file", "str",
+                          "Brake-parameter YAML (empty: the paper's Table 3)"),
+    "coupler_lut_file": ("coupler_lut_file", "str",
+                         "Coupler YAML (empty: the shipped buffer-hook table)"),
+    "track_file": ("track_file", "str", "Track YAML (empty: level straight track)"),
+    "start_chainage_m": ("start_chainage_m", "float",
+                         "Chainage of the head's front at t = 0 on the track [m]"),
+    "tolerance_m_s": ("tolerance_m_s", "float",
+                      "Local error allowed per step in each vehicle's speed [m/s]; 0 = fixed "
+                      "steps"),
     "clock": ("clock", "str",
               "/clock policy: auto (publish unless another plant does, then follow it), "
               "publish, follow (run on another plant's /clock) or none"),
@@ -68,7 +79,8 @@ OTHER_ARGUMENTS = {
     "namespace": ("", "Namespace of the node and its topics, e.g. /train1 (empty = /)"),
     "params_file": ("", "Parameter file (/**/sim_node: ros__parameters:); empty = the "
                         "installed share/ltd_brake_ros/config/sim_node.yaml"),
-    "log_level": ("info", "Log level of the node (debug, info, warn, error, fatal)"),
+    "log_level": ("info", "Log level of the node's own logger (debug, info, warn, error, "
+                          "fatal); the middleware's loggers keep theirs"),
 }
 
 
@@ -118,10 +130,13 @@ def _plant(context):
     overrides = {parameter: _typed(argument, value(argument), kind)
                  for argument, (parameter, kind, _) in PARAMETER_ARGUMENTS.items()
                  if value(argument)}
-    return [Node(**installed_executable(PLANT), name=PLANT,
-                 namespace=value("namespace") or None,
+    namespace = value("namespace") or None
+    # the node's logger alone (rclpy names it after the namespace and the node): a global
+    # level would also turn on the middleware's debug lines
+    logger = ".".join([*(namespace or "").strip("/").split("/"), PLANT]).lstrip(".")
+    return [Node(**installed_executable(PLANT), name=PLANT, namespace=namespace,
                  parameters=[params_file, overrides],
-                 ros_arguments=["--log-level", value("log_level")],
+                 ros_arguments=["--log-level", f"{logger}:={value('log_level')}"],
                  output="screen", emulate_tty=True,
                  # a plant that stops by itself (max_sim_time_s, shutdown_after_stop_s, a
                  # start-up error) ends the launch

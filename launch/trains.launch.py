@@ -85,7 +85,7 @@ def _trains(context):
                 "record_dir": os.path.join(folder, f"train{k}") if record == "true" else ""}
         if k == 1:
             args |= {"consist": "scenario_6", "initial_speed_kmh": "80.0",
-                     "lock_step": "true", "clock": "publish"}
+                     "lockstep": "true", "clock": "publish"}
         else:
             scenario = FOLLOWER_SCENARIOS[(k - 2) % len(FOLLOWER_SCENARIOS)]
             args |= {"consist": f"scenario_{scenario}", "clock": "follow",

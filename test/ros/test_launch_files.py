@@ -237,13 +237,24 @@ def test_sim_launch_starts_the_plant_with_the_installed_file_and_typed_overrides
     # a choice the node refuses would pass the launch and stop the node
     assert sim.CHOICES["clock"] == ["", *CLOCK_MODES]
 
-    node, = launch("sim.launch.py", namespace="/t7", real_time_factor="0", lock_step="true",
+    # every run-defining parameter has an argument of its own name
+    assert {"consist", "initial_speed_kmh", "brake_params_file", "coupler_lut_file",
+            "track_file", "start_chainage_m", "tolerance_m_s", "steps_per_call",
+            "lockstep"} <= set(sim.PARAMETER_ARGUMENTS)
+    assert all(argument == parameter
+               for argument, (parameter, _, _) in sim.PARAMETER_ARGUMENTS.items())
+    node, = launch("sim.launch.py", namespace="/t7", real_time_factor="0", lockstep="true",
                    consist="6", record_dir="runs/x", initial_speed_kmh="80", publish_every="5",
-                   max_catch_up_s="0.5")
+                   max_catch_up_s="0.5", tolerance_m_s="0.002", steps_per_call="3",
+                   track_file="tracks/hump_10permille.yaml", log_level="debug")
     assert node.kwargs["namespace"] == "/t7"
     assert _overrides(node) == {"real_time_factor": 0.0, "lockstep": True, "consist": "6",
                                 "record_dir": "runs/x", "initial_speed_kmh": 80.0,
-                                "publish_every": 5, "max_catch_up_s": 0.5}
+                                "publish_every": 5, "max_catch_up_s": 0.5,
+                                "tolerance_m_s": 0.002, "steps_per_call": 3,
+                                "track_file": "tracks/hump_10permille.yaml"}
+    # the level is the node's logger's only (rclpy names it namespace.node)
+    assert node.kwargs["ros_arguments"] == ["--log-level", "t7.sim_node:=debug"]
     assert all(type(v).__name__ == types_of[k] for k, v in _overrides(node).items())
 
     with pytest.raises(ValueError, match="launch argument real_time_factor: 'fast' is not a "
@@ -252,8 +263,8 @@ def test_sim_launch_starts_the_plant_with_the_installed_file_and_typed_overrides
     with pytest.raises(ValueError, match="launch argument publish_every: '2.5' is not a whole "
                                          "number"):
         launch("sim.launch.py", publish_every="2.5")
-    with pytest.raises(ValueError, match='Argument "lock_step" provided value "yes"'):
-        launch("sim.launch.py", lock_step="yes")
+    with pytest.raises(ValueError, match='Argument "lockstep" provided value "yes"'):
+        launch("sim.launch.py", lockstep="yes")
     with pytest.raises(ValueError, match="launch argument params_file: /nonexistent.yaml is "
                                          "not a file"):
         launch("sim.launch.py", params_file="/nonexistent.yaml")
