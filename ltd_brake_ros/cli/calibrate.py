@@ -6,7 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from .options import add_model_options, load_model, parse_scenarios, positive_int
+from .options import (add_model_options, check_output_file, load_model, parse_scenarios,
+                      positive_int)
 
 HELP = """\
 Fit brake-model parameters so that simulated emergency stopping distances match reference
@@ -115,6 +116,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="skip the leave-one-train-out refits")
     p.add_argument("--allow-on-bound", action="store_true",
                    help="write --out even when a fitted value sits on a bound")
+    p.add_argument("--allow-unconverged", action="store_true",
+                   help="write --out even when the fit did not converge (the file says so in "
+                        "its first line)")
     p.add_argument("--draft-limit-kn", type=float, metavar="KN",
                    help="--target forces: also keep the peak draft of the light long trains "
                         "that snatch as they stop (E402B + 34-40 Shimmns from 40-50 km/h) "
@@ -131,7 +135,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="parallel processes (default: all cores)")
     p.add_argument("--out", metavar="FILE",
                    help="write the fitted parameters as a brake-parameter YAML for "
-                        "simulate/validate/sim_node (--params)")
+                        "simulate/validate/sim_node (--params); never one of the input files")
+    p.add_argument("--force", action="store_true",
+                   help="let --out replace an existing file (never an input)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
     return p
@@ -175,6 +181,8 @@ def command_line(args: argparse.Namespace, fit) -> str:
         parts.append(f"--max-nfev {args.max_nfev}")
     if args.allow_on_bound:
         parts.append("--allow-on-bound")
+    if getattr(args, "allow_unconverged", False):
+        parts.append("--allow-unconverged")
     if getattr(args, "draft_limit_kn", None) is not None:
         parts.append(f"--draft-limit-kn {args.draft_limit_kn:g}")
     if args.out:
@@ -206,8 +214,18 @@ def _finish(args: argparse.Namespace, cal, file_text) -> int:
         raise InputError("command line", "--out", f"not written: {', '.join(cal.at_bound)} "
                          "ended on a bound, so the bound, not the data, sets it; fit fewer "
                          "parameters, hold it with --set, or give --allow-on-bound")
+    converged = cal.converged
+    if args.out and not converged and not args.allow_unconverged:
+        raise InputError("command line", "--out", "not written: the fit did not converge "
+                         f"({cal.message or 'no message'}); raise --max-nfev, "
+                         "fit fewer parameters, or give --allow-unconverged")
     if args.out:
-        _write(args.out, file_text(cal, command_line(args, cal.fit)))
+        text = file_text(cal, command_line(args, cal.fit))
+        if not converged:
+            text = ("# NOT CONVERGED: the optimiser stopped before the fit converged "
+                    f"({cal.message}); these values are not a calibration.\n"
+                    + text)
+        _write(args.out, text)
         print()
         print(f"wrote {args.out}")
     return 0
@@ -318,8 +336,9 @@ def run(args: argparse.Namespace) -> int:
 
     positive_int(args.max_nfev, "--max-nfev")
     positive_int(args.jobs, "--jobs")
-    if args.out and not Path(args.out).expanduser().resolve().parent.is_dir():
-        raise InputError("command line", "--out", f"directory of {args.out} does not exist")
+    if args.out:  # refused before the fit, not after minutes of it
+        check_output_file(args.out, "--out", force=args.force,
+                          inputs=(args.params, args.lut, *(args.consist or ())))
     if args.target == "forces":
         return run_forces(args)
     # --params gives the start values, the fields not fitted and the model the names belong to

@@ -158,6 +158,51 @@ def parse_scenarios(text: str, option: str = "--scenarios") -> list[int]:
     return list(dict.fromkeys(out))
 
 
+def check_output_file(path: str, option: str, *, force: bool = False,
+                      inputs: tuple = ()) -> None:
+    """Refuse an output file that would replace an input or, without ``--force``, any file.
+
+    Parameters
+    ----------
+    path : str
+        The file the command is asked to write.
+    option : str
+        Its option, e.g. ``--out``.
+    force : bool, optional
+        ``--force``: an existing file (not an input) may be replaced.
+    inputs : tuple of (str or None)
+        Files the command reads (names as given; shipped names are resolved).
+
+    Raises
+    ------
+    InputError
+        One line naming the option and the reason.
+    """
+    from pathlib import Path
+
+    from ..inputs import InputError
+    from ..inputs.schema import resolve_config_path
+
+    target = Path(path).expanduser()
+    if not target.resolve().parent.is_dir():
+        raise InputError("command line", option, f"the folder of {path} does not exist")
+    if target.is_dir():
+        raise InputError("command line", option, f"{path} is a folder; give a file name")
+    for given in inputs:
+        if not given:
+            continue
+        try:
+            source = Path(resolve_config_path(given))
+        except (InputError, OSError):
+            continue
+        if source.exists() and target.exists() and source.resolve() == target.resolve():
+            raise InputError("command line", option, f"{path} is the input file {given}; "
+                             "write the result to a new file (an input is never replaced)")
+    if target.exists() and not force:
+        raise InputError("command line", option, f"{path} exists; give a new file, or "
+                         "--force to replace it")
+
+
 def positive_int(value: int | None, option: str) -> int | None:
     """Check that an optional count (``--jobs``, ``--max-nfev``) is at least 1.
 

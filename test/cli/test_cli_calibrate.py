@@ -41,10 +41,47 @@ def test_out_file_on_a_full_disk_is_one_line_and_keeps_the_old_file(tmp_path, mo
     out.write_text("previous: file\n")
     monkeypatch.setattr(output_module, "open", DiskFull(500).open, raising=False)
     assert main(["calibrate", "--target", "paper", "--fit", "k0", "--scenarios", "1",
-                 "--step-s", "0.05", "--jobs", "1", "--quiet", "--out", str(out)]) == 2
+                 "--step-s", "0.05", "--jobs", "1", "--quiet", "--out", str(out), "--force"]) == 2
     assert "No space left on device" in one_line_error("calibrate")
     assert out.read_text() == "previous: file\n"  # not a truncated parameter file
     assert [p.name for p in tmp_path.iterdir()] == ["fitted.yaml"]
+
+
+def test_out_never_replaces_an_input_and_an_existing_file_needs_force(tmp_path,
+                                                                     one_line_error):
+    from ltd_brake_ros.inputs.schema import config_dir
+
+    params = tmp_path / "mine.yaml"
+    params.write_bytes((config_dir() / "brake_params" / "paper.yaml").read_bytes())
+    before = params.read_bytes()
+    base = ["calibrate", "--target", "paper", "--fit", "k0", "--scenarios", "1", "--step-s",
+            "0.05", "--jobs", "1", "--quiet", "--no-cross-validation", "--params", str(params)]
+    for extra in ([], ["--force"]):  # an input, even with --force
+        assert main(base + ["--out", str(params)] + extra) == 2
+        assert "is the input file" in one_line_error("calibrate")
+    other = tmp_path / "other.yaml"
+    other.write_text("kept: true\n")
+    assert main(base + ["--out", str(other)]) == 2
+    assert "exists" in one_line_error("calibrate") and other.read_text() == "kept: true\n"
+    assert params.read_bytes() == before
+    assert main(base + ["--out", str(other), "--force"]) == 0
+    assert "Produced by" in other.read_text()  # replaced by the fitted file
+    load_brake_params(other)
+
+
+def test_a_fit_that_did_not_converge_is_not_written_unless_asked(tmp_path, capsys,
+                                                                 one_line_error):
+    out = tmp_path / "fitted.yaml"
+    argv = ["calibrate", "--target", "paper", "--fit", "k0", "--scenarios", "1", "--step-s",
+            "0.05", "--jobs", "1", "--quiet", "--no-cross-validation", "--max-nfev", "2",
+            "--out", str(out)]
+    assert main(argv) == 2
+    err = one_line_error("calibrate")
+    assert "did not converge" in err and "--allow-unconverged" in err and not out.exists()
+    assert main(argv + ["--allow-unconverged"]) == 0
+    first = out.read_text().splitlines()[0]
+    assert first.startswith("# NOT CONVERGED")
+    load_brake_params(out)  # still a valid parameter file
 
 
 # --------------------------------------------------------------------------- bad input
