@@ -184,11 +184,31 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
                               for r in table.filter(status != "ok").slice(0, 5)
                               .select(["run_id", "manoeuvre", "message"]).to_pylist()],
                  "confidence": confidence, "manoeuvres": {}, "plots": []}
+    rep["warnings"] = []
+    if rep["runs"] < rep["expected_runs"]:
+        share = 100 * rep["runs"] / rep["expected_runs"]
+        rep["warnings"].append(f"{folder} is incomplete: {rep['runs']} of "
+                               f"{rep['expected_runs']} runs ({share:.0f} %)")
+    names = meta.get("manoeuvres") or sorted(set(table["manoeuvre"].to_pylist()))
     ref_table = None
     if against is not None:
         ref_meta, ref_table = read_results(against)
         rep["reference"] = ref_meta.get("name", str(against))
-    names = meta.get("manoeuvres") or sorted(set(table["manoeuvre"].to_pylist()))
+        ref_names = set(ref_table["manoeuvre"].to_pylist())
+        common = [n for n in names if n in ref_names]
+        if not common:
+            raise InputError(against, "", f"has no manoeuvre in common with {folder} "
+                             f"({', '.join(sorted(ref_names)) or 'none'} against "
+                             f"{', '.join(names)}): nothing to compare")
+        ref_expected = ref_meta["runs"] * len(ref_meta["manoeuvres"])
+        if ref_table.num_rows < ref_expected:
+            rep["warnings"].append(f"reference {against} is incomplete: {ref_table.num_rows} "
+                                   f"of {ref_expected} runs "
+                                   f"({100 * ref_table.num_rows / ref_expected:.0f} %)")
+        missing = [n for n in names if n not in ref_names]
+        if missing:
+            rep["warnings"].append(f"reference {against} has no runs of "
+                                   f"{', '.join(missing)}: not compared")
     for name in names:
         part = table.filter(pc.equal(table["manoeuvre"], name))
         ref = None
@@ -200,6 +220,9 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
         if plots is not None:
             rep["plots"] += _plots(Path(plots), name, _kpis(part), ref, rep["name"],
                                    rep.get("reference"))
+    if against is not None and not any(sec["relative"] for sec in rep["manoeuvres"].values()):
+        raise InputError(against, "", f"no KPI of {folder} could be compared with it (no "
+                         "successful run with a value on one side): nothing to compare")
     return rep
 
 
@@ -313,6 +336,7 @@ def format_report(rep: dict) -> str:
     lines = [f"campaign {rep['name']}: {rep['runs']} of {rep['expected_runs']} runs, "
              f"{rep['failed']} failed"]
     lines += [f"  {m}" for m in rep["failures"]]
+    lines += [f"warning: {w}" for w in rep.get("warnings", ())]
     for name, sec in rep["manoeuvres"].items():
         lines.append(f"manoeuvre {name} ({sec['runs']} runs), quantiles "
                      f"(estimate [{100 * c:g} % bootstrap interval]):")

@@ -84,10 +84,12 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from ..inputs.campaign import load_campaign
-    from ..studies.campaign_exec import make_executor, missing_batches, run_campaign
+    from ..studies.campaign_exec import (make_executor, missing_batches, prepare_folder,
+                                         run_campaign)
 
     positive_int(args.jobs, "--jobs")
     c = load_campaign(args.file)
+    prepare_folder(c, args.out)  # a folder of another campaign or model is refused here
     todo = missing_batches(c, args.out)
     per_train = len(c.manoeuvres)  # a row (a run) per train and manoeuvre
     done_runs = per_train * (c.runs - sum(min(c.batch_size, c.runs - b * c.batch_size)
@@ -103,13 +105,23 @@ def run(args: argparse.Namespace) -> int:
             bar.set_postfix(failed=failed[0], refresh=False)
             bar.update(runs)
 
+        def note(line: str) -> None:
+            bar.write(f"note: {line}", file=sys.stderr)
+
         try:
-            summary = run_campaign(c, args.out, executor, progress=progress)
+            summary = run_campaign(c, args.out, executor, progress=progress, note_fn=note)
         finally:
             bar.close()
     print(f"{c.name}: {summary['runs']} runs in {summary['batches']} batches "
           f"({summary['failed']} failed), {summary['skipped']} batches already done, "
           f"{executor.workers} workers; results in {args.out}")
+    if summary["runs"] and summary["failed"] == summary["runs"]:
+        print(f"error: every run failed; the first messages: ltd-brake campaign report "
+              f"{args.out}", file=sys.stderr)
+        return 1
+    if summary["failed"]:
+        print(f"warning: {summary['failed']} of {summary['runs']} runs failed; their messages "
+              f"are in the results (ltd-brake campaign report {args.out})", file=sys.stderr)
     return 0
 
 

@@ -11,7 +11,9 @@ import argparse
 import functools
 import importlib
 import os
+import signal
 import sys
+import threading
 
 from .options import CONVENTIONS
 
@@ -72,8 +74,8 @@ def main(argv: list[str] | None = None) -> int:
     -------
     int
         Exit status: 0 success, 2 bad input or an output that cannot be written, 3 simulation
-        failure, 130 interrupted, 141 the output was closed early (as a shell reports a writer
-        ended by SIGPIPE).
+        failure, 130 interrupted, 143 terminated (SIGTERM), 141 the output was closed early
+        (as a shell reports a writer ended by SIGPIPE).
     """
     argv = sys.argv[1:] if argv is None else argv
     # a command line starting with a verb builds that verb alone: the others' options (and the
@@ -87,10 +89,14 @@ def main(argv: list[str] | None = None) -> int:
     from ..inputs import InputError
     from ..simulator import SimulationError
 
+    previous = _terminate_as_interrupt()
     try:
         status = args.func(args)
         sys.stdout.flush()  # an output that cannot be written is reported here, not at exit
         return status
+    except Terminated:
+        print(f"ltd-brake {args.command}: terminated", file=sys.stderr)
+        return 143
     except InputError as exc:
         print(f"ltd-brake {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -117,6 +123,24 @@ def main(argv: list[str] | None = None) -> int:
         except OSError:
             _discard_stdout()
         return 2
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+class Terminated(BaseException):
+    """SIGTERM arrived: unwinds like Ctrl-C, so workers and partial outputs are cleaned up."""
+
+
+def _terminate_as_interrupt():
+    """Turn SIGTERM into :class:`Terminated` in the main thread; the previous handler."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def handler(signum, frame):
+        raise Terminated()
+
+    return signal.signal(signal.SIGTERM, handler)
 
 
 def _discard_stdout() -> None:

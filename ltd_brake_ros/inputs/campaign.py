@@ -21,7 +21,8 @@ from .couplers import load_coupler_lut
 from .schema import Fields, InputError, config_dir, kind_of, load_yaml, resolve_config_path
 
 __all__ = ["Campaign", "Distribution", "Family", "Locomotives", "Manoeuvre", "Variant",
-           "WagonType", "campaign_from_mapping", "fittable_parameters", "load_campaign"]
+           "WagonType", "campaign_from_mapping", "file_digest", "fittable_parameters",
+           "load_campaign"]
 
 #: Most runs one campaign may hold; a guard against a typing error in ``runs``.
 MAX_RUNS = 100_000_000
@@ -222,6 +223,10 @@ class Campaign:
     document : mapping or None
         The document a campaign built from a mapping (not a file) was read from: a results
         folder keeps it as its ``campaign.yaml``.
+    inputs : dict
+        Every file the campaign reads (its own file, the shipped vehicle types, each model
+        variant's file), resolved path -> SHA-256 of its bytes: a results folder is pinned to
+        them.
     """
 
     name: str
@@ -241,6 +246,7 @@ class Campaign:
     vehicle_types: dict
     vehicle_lengths_m: dict
     document: Any = None
+    inputs: dict = dataclasses.field(default_factory=dict)
 
     @property
     def batches(self) -> int:
@@ -340,8 +346,29 @@ def _int_pair(f: Fields, name: str, lo: int, hi: int) -> tuple[int, int]:
     return int(a), int(b)
 
 
-def _variants(f: Fields, name: str, default: str, load, base: Path) -> tuple:
-    """``[{file, weight, ...}]`` model variants, each file loaded and validated once."""
+def file_digest(path: str | os.PathLike) -> str:
+    """SHA-256 of a file's bytes, in hexadecimal.
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    str
+    """
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _variants(f: Fields, name: str, default: str, load, base: Path,
+              files: dict | None = None) -> tuple:
+    """``[{file, weight, ...}]`` model variants, each file loaded and validated once.
+
+    The resolved path and digest of each file go into ``files``."""
     entries = f.data.get(name) or [{"file": default}]
     if not isinstance(entries, list):
         raise f.error(name, f"must be a list of {{file, weight}}, got {kind_of(entries)}")
@@ -351,6 +378,8 @@ def _variants(f: Fields, name: str, default: str, load, base: Path) -> tuple:
         v.reject_unknown({"file", "weight", "name", "draft_strength_kN", "buff_strength_kN"})
         path = resolve_config_path(v.string("file"), base)
         params = load(path)
+        if files is not None:
+            files[str(Path(path).resolve())] = file_digest(path)
         for key in ("draft_strength_kN", "buff_strength_kN"):
             if v.has(key):
                 if name != "couplers":
@@ -364,7 +393,32 @@ def _variants(f: Fields, name: str, default: str, load, base: Path) -> tuple:
     return tuple(out)
 
 
-def _family(data: Any, source: str, path: str, library: dict) -> Family:
+def _check_masses(w: Fields, tname: str, tare: float, payload: Distribution,
+                  loaded_fraction: float, extra: Mapping) -> None:
+    """Every mass a wagon type can be drawn with must make a vehicle its type can be.
+
+    The lightest empty and the lightest and heaviest loaded wagon are built in both brake
+    positions; a mass that its type's braked weight (or any other of its fields) refuses names
+    the campaign field and the vehicle type's field.
+    """
+    cases = []
+    if loaded_fraction < 1.0:
+        cases.append(("tare_t", "an empty", tare))
+    if loaded_fraction > 0.0:
+        cases += [("payload_t", "the lightest loaded", tare + payload.support[0]),
+                  ("payload_t", "the heaviest loaded", tare + payload.support[1])]
+    for key, what, mass in cases:
+        for position in ("P", "G"):
+            try:
+                consist_from_mapping({"vehicle_types": dict(extra), "vehicles": [
+                    {"type": tname, "mass_t": mass, "brake_position": position}]}, w.source)
+            except InputError as exc:
+                field = exc.field.replace("vehicles[0].", f"{tname}.")
+                raise w.error(key, f"{what} {tname} ({mass:g} t) is not a vehicle its type can "
+                              f"be: {field}: {exc.reason}") from None
+
+
+def _family(data: Any, source: str, path: str, library: dict, extra: Mapping) -> Family:
     f = Fields(data, source, path)
     f.reject_unknown({"name", "weight", "wagons", "length_m", "wagon_types", "g_fraction",
                       "isolated_fraction", "locomotives"})
@@ -387,9 +441,10 @@ def _family(data: Any, source: str, path: str, library: dict) -> Family:
         if tare + payload.support[1] > 500.0:
             raise w.error("payload_t", f"tare + payload reaches {tare + payload.support[1]:g} t, "
                           "beyond 500 t per vehicle")
+        loaded_fraction = w.number("loaded_fraction", 1.0, lo=0.0, hi=1.0)
+        _check_masses(w, str(tname), tare, payload, loaded_fraction, extra)
         wagon_types.append(WagonType(str(tname), w.number("share", 1.0, lo=0.0, lo_open=True),
-                                     tare, payload, w.number("loaded_fraction", 1.0, lo=0.0,
-                                                             hi=1.0)))
+                                     tare, payload, loaded_fraction))
     wagon_types.sort(key=lambda w: w.type)  # draws do not depend on the file's key order
     shortest = min(library[t.type] for t in wagon_types)  # [m]
     loco = Fields(f.data.get("locomotives") or {}, source, f.sub("locomotives"))
@@ -490,12 +545,23 @@ def campaign_from_mapping(data: Any, source: str, digest: str = "",
     fams = f.data.get("families")
     if not isinstance(fams, list) or not fams:
         raise f.error("families", "missing or not a non-empty list of train families")
-    families = tuple(_family(x, source, f"families[{i}]", library) for i, x in enumerate(fams))
+    families = tuple(_family(x, source, f"families[{i}]", library, extra)
+                     for i, x in enumerate(fams))
     base = base or Path.cwd()
+    files = {}
+    if Path(source).is_file():
+        files[str(Path(source).resolve())] = digest or file_digest(source)
+    else:  # built from a mapping: the document is the input
+        import json
+
+        digest = digest or hashlib.sha256(json.dumps(data, sort_keys=True, default=str)
+                                          .encode()).hexdigest()
+    shipped = config_dir() / "vehicles.yaml"
+    files[str(shipped.resolve())] = file_digest(shipped)
     coupler_variants = _variants(f, "couplers", "couplers/buffer_hook_pugi.yaml",
-                                 load_coupler_lut, base)
+                                 load_coupler_lut, base, files)
     brake_variants = _variants(f, "brake_params", "brake_params/paper.yaml", load_brake_params,
-                               base)
+                               base, files)
     known = fittable_parameters()
     unc = Fields(f.data.get("uncertainties") or {}, source, "uncertainties")
     uncertainties = {}
@@ -520,7 +586,7 @@ def campaign_from_mapping(data: Any, source: str, digest: str = "",
         adhesion_limit=(f.number("adhesion_limit", lo=0.0, lo_open=True, hi=1.0)
                         if f.has("adhesion_limit") else None),
         step_s=step, vehicle_types=dict(extra), vehicle_lengths_m=library,
-        document=None if Path(source).is_file() else data)
+        document=None if Path(source).is_file() else data, inputs=files)
 
 
 def _has_field(params: Any, field: str) -> bool:

@@ -27,10 +27,11 @@ from ..inputs import InputError
 from ..inputs.campaign import Campaign
 from ..simulator import SimulationError
 from .campaign import run_batch, schema_of, warm_up
-from .parallel import default_workers, process_pool
+from .parallel import default_workers, process_pool, terminate_pool
 
-__all__ = ["DaskExecutor", "Executor", "PoolExecutor", "SerialExecutor", "make_executor",
-           "missing_batches", "read_results", "run_campaign"]
+__all__ = ["DaskExecutor", "Executor", "PoolExecutor", "SerialExecutor", "check_batches",
+           "make_executor", "missing_batches", "prepare_folder", "read_manifest",
+           "read_results", "run_campaign"]
 
 #: Times a batch is resubmitted after its worker process died.
 MAX_RETRIES = 3
@@ -102,8 +103,8 @@ class PoolExecutor(Executor):
                             del pending[b]
                             yield b, table
                 except BaseException as exc:
-                    # interrupted (Ctrl-C) or a worker died: drop the batches not started
-                    pool.shutdown(wait=False, cancel_futures=True)
+                    # interrupted (Ctrl-C, SIGTERM) or a worker died: stop every worker now
+                    terminate_pool(pool)
                     if not isinstance(exc, BrokenProcessPool):
                         raise
                     tries += 1
@@ -195,45 +196,220 @@ def _batch_path(out: Path, b: int) -> Path:
     return out / "batches" / f"batch-{b:07d}.parquet"
 
 
+def _checksum_path(path: Path) -> Path:
+    """The file beside a batch that holds its SHA-256 and row count."""
+    return path.with_name(path.name + ".sha256")
+
+
 def _package_version() -> str:
     from .. import __version__
 
     return __version__
 
 
-def _prepare(c: Campaign, out: Path) -> None:
-    """Create the results folder, or check that it holds this campaign."""
-    manifest = out / "manifest.json"
-    if manifest.exists():
-        try:
-            old = json.loads(manifest.read_text())
-        except (OSError, ValueError) as exc:
-            raise InputError(manifest, "", f"cannot read: {exc}") from None
-        for key in ("digest", "seed", "runs", "batch_size"):
-            if old.get(key) != getattr(c, key):
-                raise InputError(out, "", f"holds results of another campaign ({key} "
-                                 f"{old.get(key)!r}, this campaign {getattr(c, key)!r}); "
-                                 "choose another --out")
+#: Keys of the manifest a resumed campaign must match, and what each means to a user.
+_PINNED = {"digest": "campaign file", "seed": "seed", "runs": "runs",
+           "batch_size": "batch_size", "package_version": "ltd_brake_ros version"}
+
+
+def _manifest(c: Campaign) -> dict:
+    return {"name": c.name, "campaign_file": str(Path(c.source).resolve()),
+            "digest": c.digest, "seed": c.seed, "runs": c.runs, "batch_size": c.batch_size,
+            "batches": c.batches, "sampling": c.sampling,
+            "manoeuvres": [m.name for m in c.manoeuvres],
+            "package_version": _package_version(), "inputs": dict(c.inputs),
+            "columns": schema_of(c).names}
+
+
+def read_manifest(out: str | os.PathLike) -> dict:
+    """The manifest of a results folder, checked to be one.
+
+    Parameters
+    ----------
+    out : path-like
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    InputError
+        No manifest, or one that cannot be read or lacks a field.
+    """
+    manifest = Path(out) / "manifest.json"
+    if not manifest.is_file():
+        raise InputError(out, "", "is not a campaign results folder (no manifest.json)")
+    try:
+        meta = json.loads(manifest.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise InputError(manifest, "", f"cannot read: {exc}") from None
+    if not isinstance(meta, dict):
+        raise InputError(manifest, "", "is not a campaign manifest (not a JSON object)")
+    for key, kind in (("digest", str), ("runs", int), ("batch_size", int),
+                      ("manoeuvres", list)):
+        if not isinstance(meta.get(key), kind) or isinstance(meta.get(key), bool):
+            raise InputError(manifest, key, "missing or damaged; the folder cannot be trusted, "
+                             "run the campaign into a new --out")
+    if meta["runs"] < 1 or meta["batch_size"] < 1 or not meta["manoeuvres"]:
+        raise InputError(manifest, "runs", "damaged (no run, batch or manoeuvre); run the "
+                         "campaign into a new --out")
+    return meta
+
+
+def _short(text) -> str:
+    text = str(text)
+    return text[:12] if len(text) == 64 else text
+
+
+def prepare_folder(c: Campaign, out: str | os.PathLike) -> None:
+    """Create the results folder, or check that it holds this campaign made the same way.
+
+    A folder is pinned to the campaign file, seed, size, the package version and the digest
+    of every input file; a folder without a manifest is never adopted.
+
+    Parameters
+    ----------
+    c : Campaign
+    out : path-like
+
+    Raises
+    ------
+    InputError
+        One line naming what differs.
+    """
+    out = Path(out)
+    if (out / "manifest.json").exists():
+        old, now = read_manifest(out), _manifest(c)
+        for key, what in _PINNED.items():
+            if old.get(key) != now[key]:
+                raise InputError(out, "", f"holds results made with another {what} "
+                                 f"({_short(old.get(key))!r}, now {_short(now[key])!r}); its "
+                                 "runs would mix with these: choose a new --out")
+        before = old.get("inputs")
+        if not isinstance(before, dict):
+            raise InputError(out, "", "its manifest lists no input files, so what made its "
+                             "results cannot be checked: choose a new --out")
+        for path in sorted(set(before) | set(c.inputs)):
+            if before.get(path) != c.inputs.get(path):
+                change = ("is no longer read" if path not in c.inputs else
+                          "was not read before" if path not in before else
+                          f"changed (sha256 {_short(before[path])}, now "
+                          f"{_short(c.inputs[path])})")
+                raise InputError(out, "", f"input file {path} {change} since its results were "
+                                 "made; they would mix two models: choose a new --out (or "
+                                 "restore the file)")
         return
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise InputError(out, "", "exists and is not a campaign results folder (no "
+                         "manifest.json); it is never adopted: choose a new or empty --out")
     (out / "batches").mkdir(parents=True, exist_ok=True)
     if c.document is not None:  # built from a mapping: the folder keeps the document
         import yaml
 
-        (out / "campaign.yaml").write_text(yaml.safe_dump(c.document, sort_keys=False))
+        _atomic_write(out / "campaign.yaml",
+                      yaml.safe_dump(c.document, sort_keys=False).encode())
     else:
         shutil.copyfile(c.source, out / "campaign.yaml")
-    data = {"name": c.name, "campaign_file": str(Path(c.source).resolve()),
-            "digest": c.digest, "seed": c.seed, "runs": c.runs, "batch_size": c.batch_size,
-            "sampling": c.sampling, "manoeuvres": [m.name for m in c.manoeuvres],
-            "package_version": _package_version(),
-            "columns": schema_of(c).names}
-    tmp = manifest.with_suffix(".tmp")
-    tmp.write_text(json.dumps(data, indent=2) + "\n")
-    os.replace(tmp, manifest)
+    _atomic_write(out / "manifest.json", (json.dumps(_manifest(c), indent=2) + "\n").encode())
+
+
+def _fsync_dir(folder: Path) -> None:
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:  # not every platform opens directories
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    """Write ``data`` under a temporary name, flush it to disk, rename it into place."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    with open(tmp, "wb") as fh:
+        fh.write(data)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+    _fsync_dir(path.parent)
+
+
+def _rows_of_batch(runs: int, batch_size: int, manoeuvres: int, b: int) -> int:
+    return manoeuvres * max(0, min(batch_size, runs - b * batch_size))
+
+
+def _check_batch(path: Path, digest: str, b: int, rows: int,
+                 schema: pa.Schema | None = None) -> str:
+    """Why the batch file at ``path`` cannot count as batch ``b`` ('' when it can)."""
+    from ..inputs.campaign import file_digest
+
+    check = _checksum_path(path)
+    try:
+        recorded = check.read_text(encoding="ascii").split()
+    except (OSError, UnicodeDecodeError):
+        return "has no checksum (it was not finished)"
+    try:
+        actual = file_digest(path)
+    except OSError as exc:
+        return f"cannot be read ({exc.strerror or exc})"
+    if len(recorded) != 2 or recorded[0] != actual:
+        return "does not match its checksum (damaged)"
+    try:
+        pf = pq.ParquetFile(path)
+        meta = pf.schema_arrow.metadata or {}
+        n = pf.metadata.num_rows
+    except (OSError, pa.ArrowException) as exc:
+        return f"is not a readable Parquet file ({exc})"
+    if meta.get(b"ltd_brake_ros.campaign_digest", b"").decode() != digest:
+        return "belongs to another campaign"
+    if meta.get(b"ltd_brake_ros.batch", b"").decode() != str(b):
+        return f"is not batch {b}"
+    if n != rows or recorded[1] != str(rows):
+        return f"holds {n} rows, batch {b} has {rows}"
+    if schema is not None and not pf.schema_arrow.remove_metadata().equals(
+            schema.remove_metadata()):
+        return "has columns other than this campaign's"
+    return ""
+
+
+def check_batches(c: Campaign, out: str | os.PathLike) -> tuple[list[int], list[str]]:
+    """Batches of ``c`` to run, and a note for each batch file present that does not count.
+
+    A batch counts as done when its file matches its checksum, holds this campaign's rows of
+    that batch and its columns; a file that does not is named in a note and run again.
+
+    Parameters
+    ----------
+    c : Campaign
+    out : path-like
+
+    Returns
+    -------
+    todo : list of int
+    notes : list of str
+    """
+    out = Path(out)
+    todo, notes = [], []
+    schema = schema_of(c)
+    for b in range(c.batches):
+        path = _batch_path(out, b)
+        if not path.exists():
+            todo.append(b)
+            continue
+        why = _check_batch(path, c.digest, b,
+                           _rows_of_batch(c.runs, c.batch_size, len(c.manoeuvres), b), schema)
+        if why:
+            todo.append(b)
+            notes.append(f"{path} {why}; batch {b} is run again")
+    return todo, notes
 
 
 def missing_batches(c: Campaign, out: str | os.PathLike) -> list[int]:
-    """Batches of ``c`` without a complete file in ``out``.
+    """Batches of ``c`` without a complete, verified file in ``out``.
 
     Parameters
     ----------
@@ -244,19 +420,29 @@ def missing_batches(c: Campaign, out: str | os.PathLike) -> list[int]:
     -------
     list of int
     """
-    out = Path(out)
-    return [b for b in range(c.batches) if not _batch_path(out, b).exists()]
+    return check_batches(c, out)[0]
 
 
-def _write(out: Path, b: int, table: pa.Table) -> None:
+def _write(out: Path, c: Campaign, b: int, table: pa.Table) -> None:
+    """Write batch ``b`` durably: data, then its checksum, each atomically."""
+    import io
+
+    from ..inputs.campaign import file_digest
+
     path = _batch_path(out, b)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    pq.write_table(table, tmp)
-    os.replace(tmp, path)
+    meta = dict(table.schema.metadata or {})
+    meta.update({b"ltd_brake_ros.campaign_digest": c.digest.encode(),
+                 b"ltd_brake_ros.batch": str(b).encode()})
+    buf = io.BytesIO()
+    pq.write_table(table.replace_schema_metadata(meta), buf)
+    _checksum_path(path).unlink(missing_ok=True)
+    _atomic_write(path, buf.getvalue())
+    _atomic_write(_checksum_path(path), f"{file_digest(path)} {table.num_rows}\n".encode())
 
 
 def run_campaign(c: Campaign, out: str | os.PathLike, executor: Executor | None = None, *,
-                 progress: Callable[[int, int], None] | None = None) -> dict:
+                 progress: Callable[[int, int], None] | None = None,
+                 note_fn: Callable[[str], None] | None = None) -> dict:
     """Run every missing batch of a campaign into a results folder.
 
     Parameters
@@ -269,6 +455,9 @@ def run_campaign(c: Campaign, out: str | os.PathLike, executor: Executor | None 
     progress : callable, optional
         Called with (runs done, of which failed) after each batch written; a run is one
         train under one manoeuvre.
+    note_fn : callable, optional
+        Called with a line for each batch file present that does not count (damaged, foreign,
+        unfinished) and is run again.
 
     Returns
     -------
@@ -277,21 +466,24 @@ def run_campaign(c: Campaign, out: str | os.PathLike, executor: Executor | None 
         already present.
     """
     out = Path(out)
-    _prepare(c, out)
+    prepare_folder(c, out)
     for stale in (out / "batches").glob(".batch-*.tmp"):
         stale.unlink(missing_ok=True)
-    todo = missing_batches(c, out)
+    todo, notes = check_batches(c, out)
+    for note in notes:
+        if note_fn is not None:
+            note_fn(note)
     executor = executor or SerialExecutor()
     runs = failed = 0
     for b, table in executor.map_batches(c, todo):
-        _write(out, b, table)
+        _write(out, c, b, table)
         n_failed = int(pc.sum(pc.not_equal(table["status"], "ok")).as_py() or 0)
         runs += table.num_rows
         failed += n_failed
         if progress:
             progress(table.num_rows, n_failed)
     return {"batches": len(todo), "runs": runs, "failed": failed,
-            "skipped": c.batches - len(todo)}
+            "skipped": c.batches - len(todo), "redone": len(notes)}
 
 
 def read_results(out: str | os.PathLike) -> tuple[dict, pa.Table]:
@@ -312,17 +504,30 @@ def read_results(out: str | os.PathLike) -> tuple[dict, pa.Table]:
         ``out`` is not a campaign results folder.
     """
     out = Path(out)
-    manifest = out / "manifest.json"
-    if not manifest.is_file():
-        raise InputError(out, "", "is not a campaign results folder (no manifest.json)")
-    try:
-        meta = json.loads(manifest.read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(manifest, "", f"cannot read: {exc}") from None
+    meta = read_manifest(out)
     files = sorted((out / "batches").glob("batch-*.parquet"))
     if not files:
         raise InputError(out, "", "holds no results yet: run ltd-brake campaign run first")
-    table = pa.concat_tables(pq.read_table(f) for f in files)
+    batches = -(-meta["runs"] // meta["batch_size"])
+    tables = []
+    for f in files:
+        try:
+            b = int(f.name[len("batch-"):-len(".parquet")])
+        except ValueError:
+            b = -1
+        if not 0 <= b < batches:
+            raise InputError(f, "", f"is not a batch of this campaign (it has batches 0-"
+                             f"{batches - 1}); remove it")
+        why = _check_batch(f, meta["digest"], b, _rows_of_batch(
+            meta["runs"], meta["batch_size"], len(meta["manoeuvres"]), b))
+        if why:
+            raise InputError(f, "", f"{why}: run the same ltd-brake campaign run command "
+                             "again to redo it")
+        tables.append(pq.read_table(f))
+    try:
+        table = pa.concat_tables(tables)
+    except pa.ArrowException as exc:
+        raise InputError(out, "", f"its batches do not share their columns ({exc})") from None
     order = {name: i for i, name in enumerate(meta.get("manoeuvres", []))}
     rank = pa.array([order.get(m, len(order)) for m in table["manoeuvre"].to_pylist()])
     table = table.append_column("_rank", rank)

@@ -67,11 +67,26 @@ def campaign_of_results(folder, manifest: dict) -> Campaign:
         if path and Path(path).is_file():
             c = load_campaign(path)
             if c.digest == manifest.get("digest"):
+                _check_inputs(c, manifest, folder)
                 return c
             tried.append(str(path))
     raise InputError(folder / "manifest.json", "digest", "no campaign file with this digest: "
                      + (f"{', '.join(tried)} changed since the run" if tried else
                         "campaign.yaml is missing"))
+
+
+def _check_inputs(c: Campaign, manifest: dict, folder: Path) -> None:
+    """The model files a re-run reads must be those the results were made with."""
+    before = manifest.get("inputs")
+    if not isinstance(before, dict):
+        return  # results made before inputs were pinned: the re-run compares every row
+    for path, digest in c.inputs.items():
+        if path.endswith("campaign.yaml") or Path(path) == Path(c.source).resolve():
+            continue  # the campaign file itself: its digest was checked
+        if before.get(path, digest) != digest:
+            raise InputError(folder / "manifest.json", "inputs", f"{path} changed since the "
+                             "results were made; a re-run would not reproduce them (restore "
+                             "the file)")
 
 
 def run_folder_name(run_id: int, manoeuvre: str) -> str:
