@@ -89,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
 
     positive_int(args.jobs, "--jobs")
     c = load_campaign(args.file)
-    prepare_folder(c, args.out)  # a folder of another campaign or model is refused here
+    # a folder of another campaign or model is refused before any worker starts
+    prepare_folder(c, args.out, create=False)
     todo = missing_batches(c, args.out)
     per_train = len(c.manoeuvres)  # a row (a run) per train and manoeuvre
     done_runs = per_train * (c.runs - sum(min(c.batch_size, c.runs - b * c.batch_size)

@@ -52,6 +52,12 @@ GIL_YIELD_PERIOD_S = 0.02
 #: Inputs the plant takes: the emergency brake (bool), the numeric :data:`COMMAND_RANGES` and
 #: the driver's brake valve position (str, a key of :data:`VALVE_POSITIONS`).
 INPUTS = ("emergency", *COMMAND_RANGES, "driver_brake_valve")
+#: Wall time a following plant advances in one go before it serves its queued requests (a
+#: service, a reset, shutdown) and goes on [s]: a followed clock that jumps far ahead is
+#: caught up in slices, never in one uninterruptible advance.
+FOLLOW_SLICE_S = 0.05
+#: A followed clock further ahead than this is a jump, logged once with the gap [s simulated].
+FOLLOW_JUMP_S = 60.0
 #: Why a following plant refuses to be stepped or paused.
 FOLLOWING = ("this plant follows the clock of another (clock:=follow): it advances with that "
              "clock; step or pause the plant that publishes it")
@@ -163,9 +169,11 @@ class PlantRunner:
         #: The latest time of the followed clock [s] (None before the first).
         self.follow_target_s: float | None = None
         self._follow_pending = False
+        self._catching_up = False
         #: Times the followed clock went back since the last reset.
         self.clock_backs = 0
         self._next_clock_back_log = 0.0
+        self._catching_up = False
         self._next_reject_log: dict[str, float] = {}
         self._auto_brake_done = False
         self._lut_warned = False
@@ -569,6 +577,7 @@ class PlantRunner:
         self.run_chunks = 0
         self.clock_backs = 0
         self._next_clock_back_log = 0.0
+        self._catching_up = False
         self.commands = Commands()
         self._auto_brake_done = False
         self._lut_warned = False
@@ -608,7 +617,7 @@ class PlantRunner:
         if self.finished.is_set():
             return False, "max_sim_time_s reached; the node is shutting down"
         done = 0
-        while done < chunks and not self.finished.is_set():
+        while done < chunks and not self.finished.is_set() and not self._quit.is_set():
             # the last chunk of a request is always published: it answers the request
             if not self._run_chunk(done + 1 == chunks or self._publish_due()):
                 return False, f"simulation failed: {self.failure}; call ~/reset"
@@ -642,11 +651,32 @@ class PlantRunner:
                     f"t = {format_fixed(sim.time_s)} s until the clock passes it again "
                     f"(~/reset starts it from t = 0; {self.clock_backs} time(s) so far)")
             return
+        gap = target - sim.time_s
+        if gap > FOLLOW_JUMP_S and not self._catching_up:
+            self._catching_up = True
+            self._log.warning(
+                f"the followed clock jumped ahead to t = {format_fixed(target)} s, "
+                f"{format_fixed(gap)} s beyond this train (t = {format_fixed(sim.time_s)} s): "
+                f"catching up as fast as it runs, in slices of {FOLLOW_SLICE_S * 1e3:g} ms "
+                "that leave services and shutdown answered")
+        monotonic = self._clock.monotonic
+        end = monotonic() + FOLLOW_SLICE_S
         while sim.time_s + chunk_s <= target + TIME_EPS_S and not self.finished.is_set():
+            if self._quit.is_set():
+                return
+            if monotonic() >= end:  # serve what is queued, then go on from here
+                if not self._follow_pending:
+                    self._follow_pending = True
+                    self.submit(self._follow)
+                return
             last = sim.time_s + 2.0 * chunk_s > target + TIME_EPS_S
             if not self._run_chunk(last or self._publish_due()):
                 return
             self._maybe_report()
+        if self._catching_up:
+            self._catching_up = False
+            self._log.info(f"caught up with the followed clock at t = "
+                           f"{format_fixed(sim.time_s)} s")
 
     def _set_real_time_factor(self, value: float) -> None:
         now = self._clock.monotonic()

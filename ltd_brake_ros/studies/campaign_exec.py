@@ -30,7 +30,7 @@ from .campaign import run_batch, schema_of, warm_up
 from .parallel import default_workers, process_pool, terminate_pool
 
 __all__ = ["DaskExecutor", "Executor", "PoolExecutor", "SerialExecutor", "check_batches",
-           "make_executor", "missing_batches", "prepare_folder", "read_manifest",
+           "make_executor", "missing_batches", "prepare_folder", "probe_dask", "read_manifest",
            "read_results", "run_campaign"]
 
 #: Times a batch is resubmitted after its worker process died.
@@ -113,6 +113,104 @@ class PoolExecutor(Executor):
                                               f"{len(pending)} batches not run") from None
 
 
+#: How long a Dask address has to connect and send its handshake [s].
+PROBE_TIMEOUT_S = 10.0
+#: Largest handshake a Dask scheduler sends (a few hundred bytes in practice) [bytes].
+_MAX_HANDSHAKE = 1 << 16
+
+
+def probe_dask(address: str, timeout_s: float = PROBE_TIMEOUT_S,
+               connect_timeout_s: float = 0.0) -> None:
+    """Check that ``tcp://host:port`` is a Dask scheduler, within ``timeout_s``.
+
+    A Dask listener sends its handshake (a length-prefixed message holding its compression
+    and pickle settings) as soon as it accepts a connection; anything else at the address (a
+    web server, a silent port) is told apart without waiting on the Dask client, which can
+    wait forever for a peer that never answers. Addresses of other schemes are not probed.
+
+    Parameters
+    ----------
+    address : str
+    timeout_s : float, optional
+        Bound of the handshake, once connected [s].
+    connect_timeout_s : float, optional
+        How long a refused connection is tried again (a scheduler starting up) [s].
+
+    Raises
+    ------
+    InputError
+        One line: no connection, no answer in time, or not the Dask protocol.
+    """
+    import socket
+    import struct
+    import time
+
+    rest = address[len("tcp://"):] if address.startswith("tcp://") else (
+        address if "://" not in address else None)
+    if rest is None:
+        return
+    host, _, port = rest.rpartition(":")
+    host = host.strip("[]") or "127.0.0.1"
+    try:
+        port_n = int(port)
+    except ValueError:
+        raise InputError("--dask", "", f"{address!r}: write tcp://host:port or local:N") from None
+
+    def read(sock, n: int) -> bytes:
+        data = b""
+        while len(data) < n:
+            left = end - time.monotonic()
+            if left <= 0:
+                raise TimeoutError
+            sock.settimeout(left)
+            chunk = sock.recv(n - len(data))
+            if not chunk:
+                raise ConnectionError("it closed the connection")
+            data += chunk
+        return data
+
+    what = f"{host}:{port_n}"
+    connect_end = time.monotonic() + connect_timeout_s
+    while True:  # a scheduler starting up refuses connections for a moment: try again
+        try:
+            sock = socket.create_connection((host, port_n), timeout=timeout_s)
+            break
+        except ConnectionRefusedError as exc:
+            if time.monotonic() >= connect_end:
+                raise InputError("--dask", "", f"cannot connect to {what} within "
+                                 f"{connect_timeout_s:g} s: {exc.strerror or exc}") from None
+            time.sleep(0.1)
+        except OSError as exc:
+            raise InputError("--dask", "", f"cannot connect to {what}: "
+                             f"{exc.strerror or exc}") from None
+    end = time.monotonic() + timeout_s
+    try:
+        with sock:
+            (size,) = struct.unpack("<Q", read(sock, 8))
+            if not 0 < size <= _MAX_HANDSHAKE:
+                raise ValueError(f"a first message of {size} bytes")
+            body = read(sock, size)
+    except TimeoutError:
+        raise InputError("--dask", "", f"{what} sent no Dask handshake within {timeout_s:g} s: "
+                         "not a Dask scheduler (or one too busy to answer)") from None
+    except (ConnectionError, ValueError) as exc:
+        raise InputError("--dask", "", f"{what} does not speak the Dask protocol ({exc}): "
+                         "is it the scheduler's address (default port 8786)?") from None
+    except OSError as exc:
+        raise InputError("--dask", "", f"cannot connect to {what}: "
+                         f"{exc.strerror or exc}") from None
+    try:
+        from distributed.protocol import loads
+        from distributed.protocol.utils import unpack_frames
+
+        msg = loads(unpack_frames(body))
+    except Exception:  # noqa: BLE001 - any undecodable answer is a protocol mismatch
+        msg = None
+    if not isinstance(msg, dict) or "compression" not in msg:
+        raise InputError("--dask", "", f"{what} answered, but not with a Dask handshake: is it "
+                         "the scheduler's address (default port 8786)?")
+
+
 class DaskExecutor(Executor):
     """Dask distributed: an existing scheduler (``tcp://host:port``) or ``local:N``.
 
@@ -145,11 +243,12 @@ class DaskExecutor(Executor):
                                             dashboard_address=None)
             self.client = Client(self.cluster)
         else:
+            probe_dask(address, min(timeout_s, PROBE_TIMEOUT_S), connect_timeout_s=timeout_s)
             try:
                 self.client = Client(address, timeout=timeout_s)
-            except (OSError, TimeoutError, ValueError) as exc:
+            except Exception as exc:  # noqa: BLE001 - any failure to connect is one line
                 raise InputError("--dask", "", f"cannot reach the Dask scheduler at {address}: "
-                                 f"{exc}") from None
+                                 f"{type(exc).__name__}: {exc}") from None
         # every worker, present or joining later, loads the kernel before its first batch
         self.client.register_worker_callbacks(setup=warm_up)
         self.workers = max(1, sum(w.get("nthreads", 1) for w in
@@ -262,7 +361,7 @@ def _short(text) -> str:
     return text[:12] if len(text) == 64 else text
 
 
-def prepare_folder(c: Campaign, out: str | os.PathLike) -> None:
+def prepare_folder(c: Campaign, out: str | os.PathLike, create: bool = True) -> None:
     """Create the results folder, or check that it holds this campaign made the same way.
 
     A folder is pinned to the campaign file, seed, size, the package version and the digest
@@ -272,6 +371,9 @@ def prepare_folder(c: Campaign, out: str | os.PathLike) -> None:
     ----------
     c : Campaign
     out : path-like
+    create : bool, optional
+        False: only check (nothing is created, so a command can check its folder before it
+        starts workers).
 
     Raises
     ------
@@ -303,6 +405,8 @@ def prepare_folder(c: Campaign, out: str | os.PathLike) -> None:
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise InputError(out, "", "exists and is not a campaign results folder (no "
                          "manifest.json); it is never adopted: choose a new or empty --out")
+    if not create:
+        return
     (out / "batches").mkdir(parents=True, exist_ok=True)
     if c.document is not None:  # built from a mapping: the folder keeps the document
         import yaml

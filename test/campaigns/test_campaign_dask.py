@@ -94,9 +94,46 @@ def test_local_cluster_workers_load_the_kernel_before_the_first_batch():
 
 def test_unreachable_scheduler_names_the_option():
     port = free_port()
-    with pytest.raises(InputError, match=rf"^--dask: cannot reach the Dask scheduler at "
-                                         rf"tcp://127.0.0.1:{port}"):
+    with pytest.raises(InputError, match=rf"^--dask: cannot connect to 127.0.0.1:{port} "
+                                         r"within 1 s: Connection refused"):
         DaskExecutor(f"tcp://127.0.0.1:{port}", timeout_s=1.0)
+
+
+@pytest.mark.parametrize("peer, words", [
+    ("silent", "sent no Dask handshake within 1 s"),
+    ("http", "does not speak the Dask protocol"),
+    ("garbage", "answered, but not with a Dask handshake")])
+def test_an_address_that_is_not_dask_is_one_line_within_its_bound(peer, words):
+    import socket
+    import threading
+    import time
+
+    server = socket.create_server(("127.0.0.1", 0))
+    port = server.getsockname()[1]
+    kept = []
+
+    def serve():
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            kept.append(conn)
+            if peer == "http":  # a web server's refusal, read as a length prefix
+                conn.sendall(b"HTTP/1.1 400 Bad Request\r\n\r\n")
+            elif peer == "garbage":  # a plausible length, then bytes that are not msgpack
+                conn.sendall((16).to_bytes(8, "little") + b"\xc1" * 16)
+
+    threading.Thread(target=serve, daemon=True).start()
+    start = time.monotonic()
+    try:
+        with pytest.raises(InputError, match=rf"^--dask: 127.0.0.1:{port} {words}"):
+            DaskExecutor(f"tcp://127.0.0.1:{port}", timeout_s=1.0)
+    finally:
+        server.close()
+        for conn in kept:
+            conn.close()
+    assert time.monotonic() - start < 5.0
 
 
 def test_bad_local_cluster_size_is_one_line(tmp_path, capsys):

@@ -8,6 +8,7 @@ import pytest
 from plant_helpers import SPEED_KMH, CostlySimulator, make_plant
 from ltd_brake_ros.inputs import consist_from_mapping
 from ltd_brake_ros.plant.diagnostics import OK, WARN, format_fixed
+from ltd_brake_ros.plant.runner import FOLLOW_SLICE_S
 from ltd_brake_ros.plant.settings import PlantSettings
 from ltd_brake_ros.simulator import Simulator
 
@@ -61,6 +62,31 @@ def test_a_clock_that_goes_back_holds_the_follower_with_one_warning_until_it_pas
     runner.follow(240_000_000)
     runner.poll()
     assert plant.stamps_ns[-2:] == [11 * CHUNK_NS, 12 * CHUNK_NS]
+
+
+def test_a_clock_that_jumps_far_ahead_is_caught_up_in_slices_that_serve_requests():
+    # every chunk costs 10 ms of wall time: a slice holds FOLLOW_SLICE_S / 10 ms chunks
+    plant = make_plant(cost_s=lambda k: 0.01, follow_clock=True)
+    runner = plant.runner
+    runner.follow(100 * 10**9)  # the leader's clock jumps to 100 s
+    runner.poll()
+    per_slice = round(FOLLOW_SLICE_S / 0.01)
+    assert len(plant.stamps_ns) - 1 <= per_slice + 1
+    warnings = plant.log.at("warning")
+    assert len(warnings) == 1 and "jumped ahead to t = 100.000 s" in warnings[0]
+    # a request queued meanwhile is answered before the next slice
+    request = runner.pause(True)
+    runner.poll()
+    assert request.done.is_set() and not request.result[0]
+    assert plant.stamps_ns[-1] < 100 * 10**9
+    polls = 0
+    while plant.stamps_ns[-1] < 100 * 10**9:
+        runner.poll()
+        polls += 1
+        assert polls < 5000 // per_slice + 10
+    assert polls >= 5000 // per_slice - 3  # 5 000 chunks, a slice at a time
+    assert plant.log.at("info")[-1] == "caught up with the followed clock at t = 100.000 s"
+    assert len(plant.log.at("warning")) == 1
 
 
 @pytest.mark.parametrize("every", [1, 3, 7])
