@@ -26,7 +26,7 @@ def brake_params_from_mapping(data: Any, source: str) -> BrakeParams:
     -------
     BrakeParams
     """
-    f = Fields({} if data is None else data, source)
+    f = Fields(data, source)
     name = f.string("model", brakes.DEFAULT_MODEL, choices=tuple(brakes.MODELS))
     model = brakes.MODELS[name]
     f.reject_unknown(file_keys(model.Params) | file_keys(brakes.friction.Params)

@@ -235,6 +235,44 @@ _SETTLED_NS = 3 * 10**9
 _KEPT_FILES, _KEPT_BYTES = 32, 2**20
 
 
+#: Byte-order marks of encodings an input file may not use, and their names.
+_OTHER_BOMS = ((b"\xff\xfe\x00\x00", "UTF-32"), (b"\x00\x00\xfe\xff", "UTF-32"),
+               (b"\xff\xfe", "UTF-16"), (b"\xfe\xff", "UTF-16"))
+
+
+def decode_text(raw: bytes, source: str | os.PathLike) -> str:
+    """The text of an input file: UTF-8 (a byte-order mark is allowed), nothing else.
+
+    Parameters
+    ----------
+    raw : bytes
+    source : str or path-like
+        The file, for error messages.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    InputError
+        One line: a UTF-16/32 file, a binary file, or bytes that are not UTF-8 (with where).
+    """
+    for bom, name in _OTHER_BOMS:
+        if raw.startswith(bom):
+            raise InputError(source, "", f"is {name} text; save it as UTF-8")
+    nul = raw.find(b"\x00", 0, 4096)
+    if nul >= 0:
+        raise InputError(source, "", f"is a binary file, not text (a NUL byte at offset {nul}); "
+                         "is it the right file?")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise InputError(source, "", f"is not UTF-8 text (byte 0x{raw[exc.start]:02X} on line "
+                         f"{line}; Latin-1 or Windows-1252?): save it as UTF-8") from None
+
+
 def parse_yaml(raw: bytes, source: str | os.PathLike) -> Any:
     """Parse the bytes of a YAML input file as :func:`load_yaml` does.
 
@@ -255,10 +293,7 @@ def parse_yaml(raw: bytes, source: str | os.PathLike) -> Any:
     InputError
         As :func:`load_yaml`.
     """
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise InputError(source, "", f"cannot read: {exc}") from None
+    text = decode_text(raw, source)
     data = _load_plain(text)
     if data is not _NOT_PLAIN:
         return data

@@ -5,7 +5,8 @@ import os
 from dataclasses import dataclass
 from typing import Any
 
-from .schema import Fields, InputError, decimal_or_text, load_yaml, resolve_config_path
+from .schema import (Fields, InputError, decimal_or_text, decode_text, load_yaml, read_input,
+                     resolve_config_path)
 
 
 @dataclass(frozen=True)
@@ -61,9 +62,10 @@ def load_track(path: str | os.PathLike, start_chainage_m: float | None = None) -
     if p.suffix.lower() == ".csv":
         import csv
 
-        if not p.is_file():
-            raise InputError(p, "", "file does not exist")
-        with open(p, newline="", encoding="utf-8") as fh:
+        import io
+
+        text = decode_text(read_input(p), p)
+        with io.StringIO(text, newline="") as fh:
             reader = csv.DictReader(fh)
             need = {"chainage_m", "gradient_permille"}
             if not reader.fieldnames or not need <= set(reader.fieldnames):
