@@ -31,8 +31,12 @@ def brake_params_from_mapping(data: Any, source: str) -> BrakeParams:
     model = brakes.MODELS[name]
     f.reject_unknown(file_keys(model.Params) | file_keys(brakes.friction.Params)
                      | {"model", "name", "description"})
-    return BrakeParams(params_from_fields(model.Params, f),
-                       params_from_fields(brakes.friction.Params, f), str(source))
+    pneumatic = params_from_fields(model.Params, f)
+    try:
+        brakes.check_fields(pneumatic)
+    except brakes.CompileError as exc:
+        raise f.error(exc.field, exc.reason) from None
+    return BrakeParams(pneumatic, params_from_fields(brakes.friction.Params, f), str(source))
 
 
 def load_brake_params(path: str | os.PathLike | None = None) -> BrakeParams:

@@ -300,7 +300,14 @@ def _parse_limits(data: Any, source: str, path: str, base: VehicleLimits) -> Veh
         values["adhesion_limit"] = f.number("adhesion_limit", lo=0.0, lo_open=True, hi=1.0)
     if f.has("wheel_slide_protection"):
         values["wheel_slide_protection"] = f.boolean("wheel_slide_protection", False)
-    return replace(base, **values)
+    out = replace(base, **values)
+    if None not in (out.endurable_lcf_N, out.draft_strength_N) and \
+            out.endurable_lcf_N > out.draft_strength_N:
+        key = "endurable_lcf_kN" if f.has("endurable_lcf_kN") else "draft_strength_kN"
+        raise f.error(key, f"the endurable fatigue load ({out.endurable_lcf_N / 1e3:g} kN) "
+                      f"exceeds the draft strength ({out.draft_strength_N / 1e3:g} kN): "
+                      "endurable_lcf_kN must not exceed draft_strength_kN")
+    return out
 
 
 def _check_braked_weight(f: Fields, name: str, b_t: float, mass_t: float) -> None:
@@ -399,6 +406,9 @@ def _consist(data: Any, source: str, shipped: dict[str, dict]) -> Consist:
             raise g.error("brake", "missing: give a brake (type blocks, disc or none)")
         brake = _parse_brake(g.data["brake"], mass_t, source, g.sub("brake"))
         position = g.string("brake_position", "P", choices=("P", "G"))
+        if brake is None and position == "G" and "brake_position" in f.data:
+            raise g.error("brake_position", "G has no effect on a vehicle without a brake "
+                          "(brake type none): remove one of the two")
         traction = _parse_traction(g.data["traction"], source, g.sub("traction")) \
             if g.has("traction") else None
         limits = _parse_limits(g.data["limits"], source, g.sub("limits"), train_limits) \

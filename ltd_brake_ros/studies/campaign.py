@@ -155,8 +155,9 @@ def draw(c: Campaign, run_id: int) -> tuple[dict, dict]:
         entry = {"type": wt.type, "mass_t": mass,
                  "brake_position": "G" if r_g < fam.g_fraction else "P"}
         isolated = r_iso < fam.isolated_fraction
-        if isolated:
+        if isolated:  # an isolated brake has no position
             entry["brake"] = {"type": "none"}
+            del entry["brake_position"]
         wagons.append(entry)
         masses.append(mass)
         types.append(wt.type)

@@ -14,7 +14,9 @@ A brake model is one module of this package that defines:
    accepted range; the input layer builds ``Params`` from a mapping with its shared field
    checks), and ``FITTABLE`` = {short name: :class:`~ltd_brake_ros.physics.parameters.Fittable`
    (field, unit, lower, upper, scale, meaning)}: calibration reads it, so a new model needs no
-   change there.
+   change there. Optionally ``check_fields(params)``: combinations of fields that no brake can
+   have (each field may be within its range), raised as :class:`CompileError` naming both
+   fields; the input layer calls it whenever a ``Params`` is built.
 2. ``compile(consist, params, force_max_N)`` -> :class:`BrakeArrays`: per-vehicle arrays, built
    once, never mutated; ``force_max_N`` is the full block force from :func:`friction.compile`.
 3. ``initial_state(arrays)`` -> :class:`BrakeState`: the model's only mutable state, released
@@ -49,7 +51,8 @@ from . import friction, linear_ramp, uic_empirical, uic_pipe
 from .base import EMERGENCY, SERVICE, BrakeArrays, BrakeState, CommandEvents, CompileError
 
 __all__ = ["EMERGENCY", "SERVICE", "BrakeArrays", "BrakeState", "BrakeParams", "CommandEvents",
-           "CompileError", "DEFAULT_MODEL", "MODELS", "advance", "friction", "model_of"]
+           "CompileError", "DEFAULT_MODEL", "MODELS", "advance", "check_fields", "friction",
+           "model_of"]
 
 #: Registered brake models by name.
 MODELS = {m.NAME: m for m in (
@@ -168,6 +171,24 @@ SOURCES_STAMP = sources_stamp()
 for _namespace in (globals(), *(vars(m) for m in MODELS.values())):
     refresh_stale_caches(_namespace, SOURCES_STAMP)
 del _namespace
+
+
+def check_fields(params) -> None:
+    """Check the combinations of a model's fields (its optional ``check_fields``).
+
+    Parameters
+    ----------
+    params : dataclass
+        A brake model's ``Params``.
+
+    Raises
+    ------
+    CompileError
+        Naming the first field of a combination that cannot be, and the other in the reason.
+    """
+    check = getattr(model_of(params), "check_fields", None)
+    if check is not None:
+        check(params)
 
 
 def model_of(params) -> Any:

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..equations import jit, jit_inline, jit_step
 from ..parameters import Fittable, parameter
-from .base import EMERGENCY, BrakeArrays, released_state, vent_delay_s
+from .base import EMERGENCY, BrakeArrays, CompileError, released_state, vent_delay_s
 
 NAME = "uic_empirical"
 #: Registry id: selects this model's branch of the jitted dispatch.
@@ -97,6 +97,27 @@ FITTABLE = {
     "t_fill": Fittable("t_fill_s", "s", 2.0, 30.0, 5.0,
                        "brake-cylinder filling time, tau = t_fill / ln 20 (Eq. 7)"),
 }
+
+
+def check_fields(p: Params) -> None:
+    """Combinations no UIC distributor has: G must fill and release more slowly than P
+    (UIC 540: P fills in 3-5 s and releases in 15-20 s, G in 18-30 s and 45-60 s).
+
+    Raises
+    ------
+    CompileError
+    """
+    if p.t_fill_G_s < p.t_fill_s:
+        raise CompileError("t_fill_G_s", f"{p.t_fill_G_s:g} s is shorter than t_fill_s "
+                           f"({p.t_fill_s:g} s): a G distributor fills more slowly than P "
+                           "(UIC 540)")
+    if p.t_release_G_s < p.t_release_s:
+        raise CompileError("t_release_G_s", f"{p.t_release_G_s:g} s is shorter than "
+                           f"t_release_s ({p.t_release_s:g} s): a G distributor releases more "
+                           "slowly than P (UIC 540)")
+    if p.simultaneous and p.v_air_m_s != Params.v_air_m_s:
+        raise CompileError("v_air_m_s", "has no effect with simultaneous: true (the command "
+                           "reaches every vehicle at once); remove one of the two")
 
 
 def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  # noqa: A001

@@ -69,7 +69,8 @@ import numpy as np
 
 from ..equations import centre_offsets_m, jit, jit_step
 from ..parameters import Fittable, parameter
-from .base import EMERGENCY, OVERCHARGE, BrakeArrays, BrakeState, released_state
+from .base import (EMERGENCY, OVERCHARGE, BrakeArrays, BrakeState, CompileError,
+                   released_state)
 
 NAME = "uic_brake_pipe"
 #: Registry id: selects this model's branch of the jitted dispatch.
@@ -319,6 +320,48 @@ FITTABLE = {
     "hose_loss": Fittable("hose_loss_coefficient", "-", 0.0, 30.0, 10.0,
                           "concentrated loss coefficient of a hose coupling"),
 }
+
+
+def check_fields(p: Params) -> None:
+    """Combinations of pressures and volumes no UIC brake has, each named with the other.
+
+    Raises
+    ------
+    CompileError
+    """
+    def bar(x: float) -> str:
+        return f"{x / BAR:g} bar"
+
+    if p.main_reservoir_pressure_Pa <= p.running_pressure_Pa + p.overcharge_Pa:
+        raise CompileError("main_reservoir_pressure_bar", f"{bar(p.main_reservoir_pressure_Pa)} "
+                           f"cannot charge the pipe to running_pressure_bar + overcharge_bar "
+                           f"({bar(p.running_pressure_Pa + p.overcharge_Pa)})")
+    if p.full_service_Pa >= p.running_pressure_Pa:
+        raise CompileError("full_service_bar", f"a reduction of {bar(p.full_service_Pa)} "
+                           f"empties a pipe at running_pressure_bar {bar(p.running_pressure_Pa)}")
+    if p.first_step_Pa >= p.full_service_Pa:
+        raise CompileError("first_step_bar", f"{bar(p.first_step_Pa)} is not below "
+                           f"full_service_bar ({bar(p.full_service_Pa)})")
+    if p.release_threshold_Pa >= p.application_threshold_Pa:
+        raise CompileError("release_threshold_bar", f"{bar(p.release_threshold_Pa)} is not "
+                           f"below application_threshold_bar ({bar(p.application_threshold_Pa)}"
+                           "): every application would release at once")
+    if p.application_threshold_Pa >= p.full_application_drop_Pa:
+        raise CompileError("application_threshold_bar", f"{bar(p.application_threshold_Pa)} is "
+                           "not below full_application_drop_bar "
+                           f"({bar(p.full_application_drop_Pa)})")
+    if p.inshot_pressure_Pa > p.max_cylinder_pressure_Pa:
+        raise CompileError("inshot_pressure_bar", f"{bar(p.inshot_pressure_Pa)} is above "
+                           f"max_cylinder_pressure_bar ({bar(p.max_cylinder_pressure_Pa)})")
+    # the auxiliary reservoir at running pressure, shared with an empty cylinder at full
+    # stroke (isothermal: the most it can give) must reach the maximum cylinder pressure
+    v_aux, v_cyl = p.aux_reservoir_volume_m3, p.cylinder_volume_m3
+    p_eq = (v_aux * (P_ATM + p.running_pressure_Pa) + v_cyl * P_ATM) / (v_aux + v_cyl) - P_ATM
+    if p_eq < p.max_cylinder_pressure_Pa:
+        raise CompileError("cylinder_volume_m3", f"{v_cyl:g} m3 filled from "
+                           f"aux_reservoir_volume_m3 {v_aux:g} m3 at running pressure reaches "
+                           f"at most {p_eq / BAR:.3g} bar, below max_cylinder_pressure_bar "
+                           f"({bar(p.max_cylinder_pressure_Pa)})")
 
 
 def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  # noqa: A001
