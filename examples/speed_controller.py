@@ -152,6 +152,9 @@ PARAMETERS = {
     "max_brake_demand": (0.3, "Largest service-brake demand [-]", (0.0, 1.0)),
     "duration_s": (180.0, "Simulated time to run, then exit; 0 = until interrupted [s]",
                    (0.0, 1e7)),
+    "real_time_factor": (0.0, "Simulated seconds per wall second: a step is asked for no "
+                              "earlier than its time on this pace; 0 = as fast as the plant "
+                              "answers", (0.0, 1e6)),
     "timeout_s": (10.0, "Wall time allowed for each exchange with the plant [s]", (0.1, 3600.0)),
     "connect_timeout_s": (60.0, "Wall time allowed to find the plant at start-up (discovery "
                                 "can take seconds on a busy machine) [s]", (0.1, 3600.0)),
@@ -191,6 +194,7 @@ class SpeedController(Node):
         self.law = speed_law(p)
         self.duration_s = p["duration_s"]
         self.timeout_s = p["timeout_s"]
+        self.real_time_factor = p["real_time_factor"]
         self.connect_timeout_s = p["connect_timeout_s"]
         self._plant = p["plant"]
         self._traction_pub = self.create_publisher(Float64, "traction_command", RELIABLE)
@@ -302,8 +306,13 @@ class SpeedController(Node):
         log.info(f"driving {self._plant} in lock-step every {dt_s:g} s to "
                  f"{self.law.target_m_s * KMH_PER_M_S:g} km/h")
         steps, report_every = 0, max(1, round(10.0 / dt_s))
+        rtf, start = self.real_time_factor, time.monotonic()
         # the first step runs with the plant's initial inputs (traction and brake off)
         while self.duration_s <= 0.0 or steps * dt_s < self.duration_s - 1e-9:
+            if rtf > 0.0:  # paced: step k is due k dt / rtf after the start
+                wait = start + steps * dt_s / rtf - time.monotonic()
+                if wait > 0.0:
+                    time.sleep(wait)
             steps += 1
             self._step(round((steps - 0.5) * dt_s * 1e9))
             traction, brake = self.law.update(self._head_speed_m_s, dt_s)

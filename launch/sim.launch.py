@@ -73,7 +73,9 @@ PARAMETER_ARGUMENTS = {
 }
 #: Accepted values of the arguments that have a fixed set (empty = the file's value).
 CHOICES = {"bool": ["", "true", "false"],
-           "clock": ["", "auto", "publish", "follow", "none"]}
+           "clock": ["", "auto", "publish", "follow", "none"],
+           "use_sim_time": ["", "true", "false"],
+           "end_launch_on_exit": ["true", "false"]}
 #: Arguments that do not set a parameter: argument -> (default, description).
 OTHER_ARGUMENTS = {
     "namespace": ("", "Namespace of the node and its topics, e.g. /train1 (empty = /)"),
@@ -81,7 +83,14 @@ OTHER_ARGUMENTS = {
                         "installed share/ltd_brake_ros/config/sim_node.yaml"),
     "log_level": ("info", "Log level of the node's own logger (debug, info, warn, error, "
                           "fatal); the middleware's loggers keep theirs"),
+    "use_sim_time": ("", "true: the node's ROS clock (log stamps, timers) runs on /clock; "
+                         "empty = the value in params_file"),
+    "end_launch_on_exit": ("true", "true: the launch ends when this plant ends; false: it "
+                                   "ends by itself (several trains). A plant that fails "
+                                   "ends the launch with a non-zero status either way"),
 }
+#: Exit statuses of a node stopped by the launch's own SIGINT/SIGTERM while shutting down.
+SIGNAL_EXITS = (-2, -15, 130, 143)
 
 
 def installed_executable(name: str) -> dict:
@@ -118,6 +127,34 @@ def _typed(argument: str, text: str, kind: str):
         raise ValueError(f"launch argument {argument}: {text!r} is not {what}") from None
 
 
+def exit_handler(node: str, end_launch: bool):
+    """The ``on_exit`` of a node: a failure fails the launch, an end may end it.
+
+    ``ros2 launch`` exits 0 unless an exception reaches its event loop, so a node that exits
+    with a non-zero status (a start-up error, a failed run) raises one here: the launch shuts
+    down and exits 1 with the node's name and status as its last line.
+
+    Parameters
+    ----------
+    node : str
+        The node's full name, for the message.
+    end_launch : bool
+        A node that ends normally ends the launch.
+
+    Returns
+    -------
+    callable
+        ``handler(event, context)`` for ``on_exit``.
+    """
+    def handler(event, context):
+        code = event.returncode
+        if code and not (context.is_shutdown and code in SIGNAL_EXITS):
+            raise RuntimeError(f"{node} exited with status {code}: it failed (its reason is "
+                               "in the lines above)")
+        return [Shutdown(reason=f"{node} exited")] if end_launch else None
+    return handler
+
+
 def _plant(context):
     """The sim_node action for the arguments' values."""
     def value(name: str) -> str:
@@ -130,6 +167,8 @@ def _plant(context):
     overrides = {parameter: _typed(argument, value(argument), kind)
                  for argument, (parameter, kind, _) in PARAMETER_ARGUMENTS.items()
                  if value(argument)}
+    if value("use_sim_time"):
+        overrides["use_sim_time"] = value("use_sim_time") == "true"
     namespace = value("namespace") or None
     # the node's logger alone (rclpy names it after the namespace and the node): a global
     # level would also turn on the middleware's debug lines
@@ -138,14 +177,16 @@ def _plant(context):
                  parameters=[params_file, overrides],
                  ros_arguments=["--log-level", f"{logger}:={value('log_level')}"],
                  output="screen", emulate_tty=True,
-                 # a plant that stops by itself (max_sim_time_s, shutdown_after_stop_s, a
-                 # start-up error) ends the launch
-                 on_exit=Shutdown(reason=f"{PLANT} exited"))]
+                 # a plant that stops by itself (max_sim_time_s, shutdown_after_stop_s) ends
+                 # the launch unless told otherwise; one that fails fails the launch
+                 on_exit=exit_handler(f"{(namespace or '').rstrip('/')}/{PLANT}",
+                                      value("end_launch_on_exit") != "false"))]
 
 
 def generate_launch_description() -> LaunchDescription:
     """Arguments and the plant (see the module docstring)."""
-    arguments = [DeclareLaunchArgument(name, default_value=default, description=text)
+    arguments = [DeclareLaunchArgument(name, default_value=default, description=text,
+                                       choices=CHOICES.get(name))
                  for name, (default, text) in OTHER_ARGUMENTS.items()]
     for name, (_, kind, text) in PARAMETER_ARGUMENTS.items():
         choices = CHOICES.get(name, CHOICES.get(kind))

@@ -91,6 +91,12 @@ def _claim_domain() -> int:
     raise pytest.UsageError(f"no free ROS domain in {DOMAINS.start}..{DOMAINS.stop - 1}")
 
 
+def pytest_unconfigure(config):
+    """Release the session's domain claim."""
+    if _domain_claim is not None:
+        _domain_claim.close()
+
+
 def pytest_configure(config):
     """Isolate the session's DDS traffic before anything initialises ROS."""
     os.environ["ROS_DOMAIN_ID"] = str(_claim_domain())

@@ -13,6 +13,7 @@ import importlib.util
 import os
 import shutil
 import sys
+import time
 import types
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -290,12 +291,74 @@ def test_trains_launch_runs_one_leader_its_controller_and_followers_on_its_clock
     params = _overrides(controller)
     assert set(params) - {"use_sim_time"} <= set(example.PARAMETERS)
     assert params["use_sim_time"] is True and params["duration_s"] == 180.0
+    assert all(p.get("max_sim_time_s") == 180.0 for p in followers)
     assert shutil.which("speed_controller.py", path=str(BIN_DIR)), \
         "speed_controller.py is not installed (run ./dev.sh setup)"
 
     assert len(launch("trains.launch.py", trains="1")) == 2
+    assert len(launch("trains.launch.py", trains="1", controller="false")) == 1
     with pytest.raises(ValueError, match="launch argument trains: '0' is not a whole number"):
         launch("trains.launch.py", trains="0")
+
+
+def _exit(node, code: int, shutting_down: bool = False):
+    """What the launch does when ``node`` exits with ``code`` (its ``on_exit`` handler)."""
+    event = types.SimpleNamespace(returncode=code)
+    return node.kwargs["on_exit"](event, types.SimpleNamespace(is_shutdown=shutting_down))
+
+
+def test_a_plant_that_fails_fails_the_launch_and_one_that_ends_ends_it(launch):
+    node, = launch("sim.launch.py", namespace="/t2")
+    # ros2 launch exits non-zero only when an exception reaches its loop: a failed node raises
+    with pytest.raises(RuntimeError, match=r"^/t2/sim_node exited with status 1: it failed"):
+        _exit(node, 1)
+    ends = _exit(node, 0)
+    assert [type(a).__name__ for a in ends] == ["Shutdown"]
+    # stopped by the launch's own Ctrl-C while shutting down: not a failure
+    assert [type(a).__name__ for a in _exit(node, -2, shutting_down=True)] == ["Shutdown"]
+    with pytest.raises(RuntimeError, match="exited with status -11"):
+        _exit(node, -11, shutting_down=True)  # a crash is a failure, even then
+    alone, = launch("sim.launch.py", end_launch_on_exit="false")
+    assert _exit(alone, 0) is None
+    with pytest.raises(RuntimeError):
+        _exit(alone, 3)
+    with pytest.raises(ValueError, match='Argument "end_launch_on_exit" provided value "no"'):
+        launch("sim.launch.py", end_launch_on_exit="no")
+    timed, = launch("sim.launch.py", use_sim_time="true")
+    assert _overrides(timed) == {"use_sim_time": True}
+
+
+def test_trains_end_independently_and_run_at_any_pace_with_or_without_the_controller(launch):
+    nodes = launch("trains.launch.py", trains="3", duration_s="60")
+    plants = [n for n in nodes if n.kwargs["name"] == "sim_node"]
+    controller, = [n for n in nodes if n.kwargs["name"] == "speed_controller"]
+    leader, *followers = plants
+    # the followers stop at the end of the run by themselves, and end only themselves
+    assert [_overrides(f)["max_sim_time_s"] for f in followers] == [60.0, 60.0]
+    assert all(_exit(p, 0) is None for p in plants)
+    # the driven leader ends with its controller, whose end ends the experiment
+    assert "max_sim_time_s" not in _overrides(leader)
+    assert [type(a).__name__ for a in _exit(controller, 0)] == ["Shutdown"]
+    with pytest.raises(RuntimeError, match="/train1/speed_controller exited with status 1"):
+        _exit(controller, 1)
+    assert _overrides(controller)["real_time_factor"] == 0.0
+    paced = launch("trains.launch.py", trains="2", real_time_factor="2")
+    assert [_overrides(n)["real_time_factor"] for n in paced
+            if n.kwargs["name"] == "speed_controller"] == [2.0]
+
+    alone = launch("trains.launch.py", trains="2", controller="false", real_time_factor="5",
+                   duration_s="30")
+    assert [n.kwargs["name"] for n in alone] == ["sim_node", "sim_node"]
+    leader = _overrides(alone[0])
+    assert leader["lockstep"] is False and leader["real_time_factor"] == 5.0
+    assert leader["max_sim_time_s"] == 30.0 and leader["clock"] == "publish"
+    first = launch("trains.launch.py", trains="2", controller="false",
+                   end_all_on_first_exit="true")
+    assert all([type(a).__name__ for a in _exit(p, 0)] == ["Shutdown"] for p in first)
+    for argument, text in (("controller", "yes"), ("real_time_factor", "-1"),
+                           ("duration_s", "0")):
+        with pytest.raises(ValueError, match=f"launch argument {argument}"):
+            launch("trains.launch.py", **{argument: text})
 
 
 # --------------------------------------------------------------------------- one real plant
@@ -339,3 +402,16 @@ def test_a_namespaced_plant_takes_the_parameter_file_and_the_arguments(
     assert proc.wait(60) == 0, proc.output()
     assert "max_sim_time_s = 2 s reached" in proc.output(), proc.output()
     assert chunks_from_log(proc.output()) == 40
+
+
+def test_a_plant_that_cannot_start_fails_its_launch_within_seconds(launch, processes, tmp_path):
+    """The real node of a launch with a consist that does not exist exits non-zero with its
+    one-line reason, and the launch's handler turns that status into a failed launch."""
+    node, = launch("sim.launch.py", consist="nonexistent.yaml")
+    proc = processes.start(*_command_line(node, tmp_path), name="doomed")
+    start = time.monotonic()
+    code = proc.wait(60)
+    assert code != 0 and "nonexistent.yaml" in proc.output(), proc.output()
+    assert time.monotonic() - start < 30.0  # well within the 10 s of an idle machine
+    with pytest.raises(RuntimeError, match=f"/sim_node exited with status {code}"):
+        _exit(node, code)
