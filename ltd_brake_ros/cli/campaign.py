@@ -1,4 +1,5 @@
-"""``ltd-brake campaign``: run a statistical campaign, report on its results."""
+"""``ltd-brake campaign``: run a statistical campaign, report on its results, list their
+columns."""
 from __future__ import annotations
 
 import argparse
@@ -10,7 +11,7 @@ from .options import positive_int
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Add the ``campaign`` verb to ``ltd-brake`` (the verb contract: :mod:`ltd_brake_ros.cli`)."""
     p = subparsers.add_parser(
-        "campaign", help="thousands of randomised trains: run, report",
+        "campaign", help="thousands of randomised trains: run, report, rerun, schema",
         description="Statistical campaigns: randomised train families under one manoeuvre, "
                     "results in a Parquet folder, quantiles and the relative approach.")
     sub = p.add_subparsers(dest="action", metavar="ACTION", required=True)
@@ -62,6 +63,18 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     w.add_argument("--namespace", default="/", metavar="NS",
                    help="namespace of the plant topics (default /, as sim_node without one)")
     w.set_defaults(func=rerun)
+    s = sub.add_parser(
+        "schema", help="the columns of the results: type, unit, meaning",
+        description="List the columns of a campaign's results with their type, unit and "
+                    "meaning, as every batch file records them in its Parquet schema (pyarrow: "
+                    "read_schema(path).field(name).metadata). FILE is a batch file "
+                    "(DIR/batches/batch-*.parquet), a results folder (its first batch) or a "
+                    "campaign YAML file (the columns its results will have).")
+    s.add_argument("file", metavar="FILE", help="batch Parquet file, results folder or campaign "
+                                                "YAML file")
+    s.add_argument("--json", action="store_true",
+                   help="print JSON: schema_version and columns (name, type, unit, description)")
+    s.set_defaults(func=schema)
     return p
 
 
@@ -228,3 +241,62 @@ def report(args: argparse.Namespace) -> int:
     failed = [v for sec in rep["manoeuvres"].values() for v in sec["relative"]
               if v["verdict"] == "FAIL"]
     return 1 if failed else 0
+
+
+def _schema_of(path: str):
+    """The results schema that ``ltd-brake campaign schema FILE`` lists (see its help)."""
+    from pathlib import Path
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from ..inputs import InputError
+    from ..inputs.campaign import load_campaign
+    from ..studies.campaign import schema_of
+    from ..studies.campaign_exec import read_manifest
+
+    where = Path(path)
+    if where.is_dir():
+        read_manifest(where)  # one line when the folder is not a results folder
+        files = sorted((where / "batches").glob("batch-*.parquet"))
+        if not files:
+            raise InputError(where, "", "holds no results yet: run ltd-brake campaign run "
+                             "first, or give the campaign YAML file")
+        where = files[0]
+    elif not where.is_file():
+        raise InputError(where, "", "no such file or folder")
+    elif where.suffix.lower() in (".yaml", ".yml"):
+        return schema_of(load_campaign(where))
+    try:
+        found = pq.read_schema(where)
+    except (OSError, pa.ArrowException) as exc:
+        raise InputError(where, "", f"is not a readable Parquet file ({exc}); give a batch "
+                         "file, a results folder or a campaign YAML file") from None
+    if b"ltd_brake_ros.campaign_digest" not in (found.metadata or {}):
+        raise InputError(where, "", "is not a batch file of campaign results (its schema "
+                         "names no campaign)")
+    return found
+
+
+def schema(args: argparse.Namespace) -> int:
+    """Print the columns of a campaign's results with their types, units and descriptions."""
+    _require_extra()
+    import json
+
+    from ..studies.campaign import describe_schema
+
+    described = {"file": args.file, **describe_schema(_schema_of(args.file))}
+    if args.json:
+        print(json.dumps(described, indent=2))
+        return 0
+    columns = described["columns"]
+    version = described["schema_version"]
+    print(f"{args.file}: {len(columns)} columns, " + (
+        f"schema version {version}" if version is not None else
+        "written before units and descriptions were recorded"))
+    rows = [("column", "type", "unit", "description")] + [
+        (c["name"], c["type"], c["unit"] or "", c["description"] or "") for c in columns]
+    widths = [max(len(r[i]) for r in rows) for i in range(3)]
+    for r in rows:
+        print("  ".join(x.ljust(w) for x, w in zip(r, widths)) + "  " + r[3])
+    return 0

@@ -9,6 +9,7 @@ from __future__ import annotations
 import bisect
 import dataclasses
 import functools
+import json
 import math
 import time
 
@@ -23,8 +24,8 @@ from ..inputs.commands import CommandScript
 from ..simulator import Commands, Simulator
 from .runs import emergency_run, scripted_run, summarize
 
-__all__ = ["KPI_FIELDS", "dimensions", "draw", "inverse_cdf", "models",
-           "run_batch", "run_one", "schema_of", "warm_up"]
+__all__ = ["COLUMNS", "KPI_FIELDS", "SCHEMA_VERSION", "describe_schema", "dimensions", "draw",
+           "inverse_cdf", "models", "run_batch", "run_one", "schema_of", "warm_up"]
 
 #: Simulated time per chunk of an emergency stop [s], and when to give up if the train has not
 #: stopped [s] (as :func:`.runs.emergency_stop`). While the stop is far, several chunks are
@@ -220,6 +221,23 @@ def models(c: Campaign, sample: dict):
     return params, lut
 
 
+#: Version of the results' columns and their metadata, recorded in every batch file
+#: (``ltd_brake_ros.schema_version``): 2 adds each column's unit and description.
+SCHEMA_VERSION = 2
+#: Keys of the schema-level metadata of a batch file.
+SCHEMA_VERSION_KEY, UNITS_KEY = "ltd_brake_ros.schema_version", "ltd_brake_ros.units"
+
+#: The input columns of a row, before the uncertain parameters.
+_INPUT_FIELDS = (
+    ("run_id", pa.int64()), ("manoeuvre", pa.string()), ("seed", pa.int64()),
+    ("status", pa.string()), ("message", pa.string()), ("family", pa.string()),
+    ("wagons", pa.int32()), ("locomotives", pa.int32()), ("locomotive_positions", pa.string()),
+    ("speed_kmh", pa.float64()), ("coupler", pa.string()), ("brake_params", pa.string()),
+    ("wagon_types", pa.list_(pa.string())), ("wagon_mass_t", pa.list_(pa.float64())),
+    ("wagon_brakes", pa.string()),
+    ("loaded_wagons", pa.int32()), ("g_wagons", pa.int32()), ("isolated_wagons", pa.int32()),
+)
+
 #: The KPI columns of a row (units in the names).
 KPI_FIELDS = (
     ("train_mass_t", pa.float64()), ("train_length_m", pa.float64()),
@@ -238,14 +256,100 @@ KPI_FIELDS = (
     ("couplers_beyond_lut", pa.int32()),
 )
 
+_MEAN_FROM_KMH = verdicts_module.MEAN_ADHESION_MIN_INITIAL_KMH
+_AT_SPEED_KMH = verdicts_module.ADHESION_SPEED_KMH
+#: Column -> (unit, description) of every column but the uncertain parameters (theirs come
+#: from :func:`~ltd_brake_ros.inputs.campaign.fittable_parameters`). Units: SI or the one in
+#: the name, ``-`` for a dimensionless number, empty for text, ids and flags.
+COLUMNS = {
+    "run_id": ("", "Run (train) number, 0 to runs - 1; its draws depend only on the seed and "
+                   "this number."),
+    "manoeuvre": ("", "Manoeuvre of the row (each train runs every manoeuvre, a row each)."),
+    "seed": ("", "Campaign seed the train was drawn from."),
+    "status": ("", "ok, or failed when drawing or simulating the run raised an error (its "
+                   "KPIs are then null)."),
+    "message": ("", "Why the run failed (error type and text); empty when status is ok."),
+    "family": ("", "Train family the train was drawn from."),
+    "wagons": ("-", "Number of wagons in the train."),
+    "locomotives": ("-", "Number of locomotives in the train."),
+    "locomotive_positions": ("", "Position of each locomotive (head, middle or tail), comma "
+                                 "separated."),
+    "speed_kmh": ("km/h", "Initial speed of the manoeuvre, drawn per train and manoeuvre."),
+    "coupler": ("", "Coupler variant drawn for the train."),
+    "brake_params": ("", "Brake-parameter variant drawn for the train."),
+    "wagon_types": ("", "Vehicle type of each wagon, from the head."),
+    "wagon_mass_t": ("t", "Mass of each wagon (tare plus payload if loaded), from the head."),
+    "wagon_brakes": ("", "Brake code of each wagon, space separated from the head: position P "
+                         "or G, or x for an isolated brake, then L loaded or E empty."),
+    "loaded_wagons": ("-", "Number of loaded wagons."),
+    "g_wagons": ("-", "Number of wagons with the brake in position G."),
+    "isolated_wagons": ("-", "Number of wagons with the brake isolated."),
+    "train_mass_t": ("t", "Mass of the train, locomotives included."),
+    "train_length_m": ("m", "Length of the train over buffers."),
+    "braked_weight_percent": ("%", "Braked-weight percentage of the train (lambda, UIC "
+                                   "544-1)."),
+    "stopping_distance_m": ("m", "Travel of the head vehicle from the brake command to "
+                                 "standstill; NaN when the train did not stop."),
+    "stop_time_s": ("s", "Time from the brake command to standstill; NaN when the train did "
+                         "not stop."),
+    "peak_draft_kN": ("kN", "Largest draft force of any coupler (draft positive, buff "
+                            "negative); 0 when no coupler was in draft."),
+    "peak_draft_coupler": ("", "Coupler of the largest draft force, counted from 1 behind "
+                               "the head vehicle."),
+    "peak_draft_time_s": ("s", "When the largest draft force occurred, from the start of the "
+                               "manoeuvre."),
+    "peak_buff_kN": ("kN", "Largest buff force of any coupler, as a negative value (draft "
+                           "positive, buff negative)."),
+    "peak_buff_coupler": ("", "Coupler of the largest buff force, counted from 1 behind the "
+                              "head vehicle."),
+    "peak_buff_time_s": ("s", "When the largest buff force occurred, from the start of the "
+                              "manoeuvre."),
+    "mean_adhesion": ("-", "Largest mean utilised adhesion of a braked vehicle (brake force at "
+                           "the rails over weight); null unless the stop started at "
+                           f"{_MEAN_FROM_KMH:.0f} km/h or more."),
+    "mean_adhesion_vehicle": ("", "Vehicle of the largest mean utilised adhesion, counted from "
+                                  "1 at the head; 0 when it was not assessed."),
+    "max_adhesion_demand": ("-", "Largest instantaneous adhesion demand (brake force over "
+                                 f"weight) of a braked vehicle above {_AT_SPEED_KMH:.0f} km/h."),
+    "max_adhesion_vehicle": ("", "Vehicle of the largest adhesion demand, counted from 1 at "
+                                 "the head."),
+    "draft_ok": ("", "True when no coupler's draft force exceeded the coupler variant's draft "
+                     "strength."),
+    "buff_ok": ("", "True when no coupler's buff force exceeded the coupler variant's buff "
+                    "strength."),
+    "travel_ok": ("", "True when every coupler stayed within the travel of its coupler "
+                      "model."),
+    "adhesion_ok": ("", "True when no vehicle's mean utilised adhesion exceeded its limit "
+                        "(true when not assessed)."),
+    "steps": ("-", "Integration steps taken."),
+    "newton_iterations": ("-", "Newton iterations of the implicit integrator over all steps."),
+    "newton_iterations_per_step": ("-", "Mean Newton iterations per step."),
+    "max_newton_iterations": ("-", "Most Newton iterations of a single step."),
+    "couplers_beyond_lut": ("-", "Number of couplers that went beyond the range of their "
+                                 "coupler characteristic (forces there are not physical)."),
+}
+
+
+def _uncertain_column(name: str) -> tuple[str, str]:
+    """Unit and description of the column of uncertain parameter ``name``."""
+    part, fit = fittable_parameters()[name]
+    meaning = fit.meaning[:1].upper() + fit.meaning[1:]
+    return fit.unit, f"{meaning} ({part} parameter {fit.field}, drawn per run)."
+
 
 def schema_of(c: Campaign) -> pa.Schema:
-    """The Parquet schema of a campaign's rows.
+    """The Parquet schema of a campaign's rows, with each column's unit and description.
 
     Inputs: the run's draws (``wagon_types``, ``wagon_mass_t`` and ``wagon_brakes`` list the
     wagons from the head; a brake code is the position ``P``/``G`` or ``x`` for an isolated
     brake, then ``L`` loaded or ``E`` empty), one column per uncertain parameter; then
     :data:`KPI_FIELDS`; ``status`` ``ok`` or ``failed`` with its ``message``.
+
+    Every field's metadata holds ``unit`` (``-`` dimensionless, empty for text, ids and
+    flags) and ``description`` (:data:`COLUMNS`; an uncertain parameter's from its
+    :class:`~ltd_brake_ros.physics.parameters.Fittable`); the schema's metadata holds
+    ``ltd_brake_ros.schema_version`` (:data:`SCHEMA_VERSION`) and ``ltd_brake_ros.units``,
+    a JSON object column -> unit.
 
     Parameters
     ----------
@@ -255,17 +359,50 @@ def schema_of(c: Campaign) -> pa.Schema:
     -------
     pyarrow.Schema
     """
-    head = [("run_id", pa.int64()), ("manoeuvre", pa.string()), ("seed", pa.int64()),
-            ("status", pa.string()),
-            ("message", pa.string()), ("family", pa.string()), ("wagons", pa.int32()),
-            ("locomotives", pa.int32()), ("locomotive_positions", pa.string()),
-            ("speed_kmh", pa.float64()), ("coupler", pa.string()), ("brake_params", pa.string()),
-            ("wagon_types", pa.list_(pa.string())), ("wagon_mass_t", pa.list_(pa.float64())),
-            ("wagon_brakes", pa.string()),
-            ("loaded_wagons", pa.int32()), ("g_wagons", pa.int32()),
-            ("isolated_wagons", pa.int32())]
-    unc = [(name, pa.float64()) for name in sorted(c.uncertainties)]
-    return pa.schema(head + unc + list(KPI_FIELDS))
+    return _schema(tuple(sorted(c.uncertainties)))
+
+
+@functools.lru_cache(maxsize=16)
+def _schema(uncertain: tuple) -> pa.Schema:
+    """:func:`schema_of` for the uncertain parameters ``uncertain`` (once per process: every
+    batch builds its table with it)."""
+    columns = [(name, kind, *COLUMNS[name]) for name, kind in _INPUT_FIELDS]
+    columns += [(name, pa.float64(), *_uncertain_column(name)) for name in uncertain]
+    columns += [(name, kind, *COLUMNS[name]) for name, kind in KPI_FIELDS]
+    fields = [pa.field(name, kind, metadata={"unit": unit, "description": text})
+              for name, kind, unit, text in columns]
+    units = {name: unit for name, _, unit, _ in columns}
+    return pa.schema(fields, metadata={SCHEMA_VERSION_KEY: str(SCHEMA_VERSION),
+                                       UNITS_KEY: json.dumps(units)})
+
+
+def describe_schema(schema: pa.Schema) -> dict:
+    """The columns of a campaign schema (e.g. a batch file's) with their units and meanings.
+
+    Parameters
+    ----------
+    schema : pyarrow.Schema
+        As :func:`schema_of` builds it or ``pyarrow.parquet.read_schema`` reads it back.
+
+    Returns
+    -------
+    dict
+        ``schema_version`` (int, None for a file written before units were recorded) and
+        ``columns``: per column a dict of ``name``, ``type``, ``unit`` and ``description``
+        (None where the schema does not record them).
+    """
+    version = (schema.metadata or {}).get(SCHEMA_VERSION_KEY.encode())
+    columns = []
+    for field in schema:
+        meta = field.metadata or {}
+        kind = field.type
+        columns.append({
+            "name": field.name,
+            "type": f"list<{kind.value_type}>" if pa.types.is_list(kind) else str(kind),
+            "unit": meta[b"unit"].decode() if b"unit" in meta else None,
+            "description": meta[b"description"].decode() if b"description" in meta else None})
+    return {"schema_version": int(version) if version and version.isdigit() else None,
+            "columns": columns}
 
 
 def run_one(c: Campaign, run_id: int) -> list[dict]:
@@ -389,7 +526,7 @@ def run_batch(c: Campaign, batch: int) -> pa.Table:
     -------
     pyarrow.Table
         One row per train and manoeuvre, by run id and then manoeuvre, with
-        :func:`schema_of`.
+        :func:`schema_of` (its field and schema metadata included).
     """
     first = batch * c.batch_size
     rows = [row for i in range(first, min(first + c.batch_size, c.runs))
