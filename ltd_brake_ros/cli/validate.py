@@ -24,8 +24,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--brake-pipe", action="store_true",
                    help="first print the UIC brake-pipe model's validation (propagation, filling "
                         "and release, build-up time beside ETCS, service cycle; not with --json), "
-                        "then Tables 1-2 against its targets (distances within 1 %% of "
-                        "LTDPoliTo); --params defaults to brake_params/uic_brake_pipe.yaml")
+                        "then Tables 1-2, then its targets, each with its source: the UIC 540 "
+                        "windows, propagation 250-280 m/s at 500-1500 m (UIC 540), build-up time "
+                        "at most ETCS's in P and G at 300-1500 m (SUBSET-026), T_e(700 m) - "
+                        "T_e(500 m) = 2.2 +/- 1.0 s in P (UIC 544-1), distances within 1 %% of "
+                        "LTDPoliTo, peak draft within 15 %% and buff within 20 %% of the paper; "
+                        "--params defaults to brake_params/uic_brake_pipe.yaml")
     p.add_argument("--json", action="store_true", help="print JSON instead of the table")
     p.set_defaults(func=run)
     return p
@@ -74,7 +78,7 @@ def targets_lines(rows, targets=None) -> list[str]:
     rows : list of ValidationRow
     targets : callable, optional
         Another list of targets with the same signature (the brake-pipe model's:
-        :func:`~ltd_brake_ros.studies.brake_pipe_validation.paper_targets`).
+        :func:`~ltd_brake_ros.studies.brake_pipe_validation.targets` with its figures).
 
     Returns
     -------
@@ -105,7 +109,9 @@ def run(args: argparse.Namespace) -> int:
         args.params = args.params or bpv.PRESET
     params, lut = load_model(args)
     if args.brake_pipe and not args.json:
-        print(bpv.report(bpv.pipe_params(params)) + "\n")
+        pipe = bpv.pipe_params(params)
+        figures = bpv.pipe_figures(pipe)
+        print(bpv.report(pipe, figures) + "\n")
     rows = validate(params, lut, scenarios, step_s=args.step_s, workers=workers)
     if args.json:
         print(json.dumps([dict(scenario=r.scenario.number, paper=r.scenario.paper,
@@ -130,8 +136,8 @@ def run(args: argparse.Namespace) -> int:
           "(row 4 prints 117.4 % in the paper, a typo for 115.1 %)")
     print()
     print("targets:" if not args.brake_pipe else
-          "targets of the brake-pipe model (distances within 1 % of LTDPoliTo):")
-    lines = targets_lines(rows, bpv.paper_targets if args.brake_pipe else None)
+          "targets of the brake-pipe model (measured; target; source):")
+    lines = targets_lines(rows, (lambda r: bpv.targets(figures, r)) if args.brake_pipe else None)
     print("\n".join(lines))
     if scenarios is None:  # the judgments run their own trains: with the whole table only
         from ..studies.judgments import judgment_targets
