@@ -393,7 +393,7 @@ class _Recording:
         from ..inputs import InputError
         from ..plant.recorder import Recorder
         from ..plant.settings import StartupError
-        from ..recording.metadata import run_metadata
+        from ..recording.metadata import run_metadata, train_description
         from ..recording.plant_topics import StateEncoder, plant_topics
         from ..simulator import Simulator
 
@@ -403,7 +403,6 @@ class _Recording:
                         step_s=self._args.step_s, tolerance_m_s=tolerance(self._args))
         snap = sim.snapshot()
         extras = tuple(snap.extras)
-        self._encoder = StateEncoder(sim.n, sim.model.train.centre_offset_m, extras=extras)
         emergency = any(step.get("emergency") for _, step in self._script.steps)
         meta = run_metadata(sim, scenario=self._args.scenario,
                             brake_params=str(spec.params.source),
@@ -413,6 +412,8 @@ class _Recording:
                             **({"command_time_s": next(
                                 t for t, step in self._script.steps if step.get("emergency"))}
                                if emergency else {}))
+        self._encoder = StateEncoder(sim.n, sim.model.train.centre_offset_m, extras=extras,
+                                     description=train_description(sim, meta))
         rec = Recorder(str(self._folder), plant_topics("/", extras), logging.getLogger(__name__),
                        metadata=meta)
         try:

@@ -48,3 +48,76 @@ def run_metadata(sim, *, scenario=None, parameters: dict | None = None, **extra)
         meta["parameters"] = dict(parameters)
     meta.update(extra)
     return meta
+
+
+#: Version of the train description's layout.
+DESCRIPTION_VERSION = 1
+
+
+def train_description(sim, metadata: dict, frame_id: str = "map") -> str:
+    """The train description a plant latches on ``train/description`` (JSON text).
+
+    What a tool joining late needs to read the plant's topics: the run information (as a
+    recording stores it), every vehicle with its joint name, type, mass, length and brake,
+    every coupler with its joint name, the vehicles it joins and its strengths, the models,
+    the marker frame and the units and sign conventions.
+
+    Parameters
+    ----------
+    sim : Simulator
+        The run's simulator.
+    metadata : dict
+        Its run information (:func:`run_metadata`).
+    frame_id : str, optional
+        Frame of the plant's markers.
+
+    Returns
+    -------
+    str
+        One JSON object.
+    """
+    import json
+
+    from ..physics import couplers
+
+    c, lim = sim.consist, sim.limits
+    vehicles = []
+    for i, v in enumerate(c.vehicles):
+        vehicles.append({
+            "index": i, "joint": f"vehicle_{i}", "type": v.name,
+            "mass_t": round(v.mass_kg / 1e3, 6), "length_m": float(v.length_m),
+            "axles": int(v.axles),
+            "brake": "none" if v.brake is None else v.brake.type,
+            "brake_position": v.brake_position if v.brake is not None else None,
+            "braked_weight_t": float(v.braked_weight_t),
+            "traction": v.traction is not None})
+    joins = []
+    for j in range(1, c.n):
+        joins.append({
+            "index": j, "joint": f"coupler_{j}", "between": [j - 1, j],
+            "draft_strength_kN": _kn(lim.draft_strength_N[j - 1]),
+            "buff_strength_kN": _kn(lim.buff_strength_N[j - 1])})
+    out = {
+        "format": "ltd_brake_ros train description", "version": DESCRIPTION_VERSION,
+        "run": metadata, "frame_id": frame_id,
+        "brake_model": sim.params.model,
+        "coupler_model": couplers.model_of(sim.lut).NAME,
+        "vehicles": vehicles, "couplers": joins,
+        "conventions": {
+            "vehicles": "vehicle 0 is the head; arrays and joints vehicle_<i> run head to tail",
+            "couplers": "coupler j joins vehicle j-1 and vehicle j (coupler 1 behind the head)",
+            "units": "SI: m, s, m/s, N, Pa (gauge); time is simulated time from 0",
+            "signs": "speed forward positive; brake force retarding positive; coupler force "
+                     "draft (tension) positive, buff (compression) negative",
+            "vehicles/state": "position = centre [m], velocity [m/s], effort = brake force [N]",
+            "couplers/state": "position = elongation from rest [m], velocity [m/s], "
+                              "effort = coupler force [N]"},
+    }
+    return json.dumps(out, allow_nan=False, default=str)
+
+
+def _kn(force_N: float) -> float | None:
+    """A strength in kN for JSON (None where unknown)."""
+    import math
+
+    return round(float(force_N) / 1e3, 3) if math.isfinite(force_N) else None

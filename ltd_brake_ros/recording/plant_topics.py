@@ -44,6 +44,10 @@ JOINT_STATE = "sensor_msgs/msg/JointState"
 #: positive].
 STATE_TOPICS = (("vehicles/state", "vehicle"), ("couplers/state", "coupler"))
 CLOCK_TOPIC = "/clock"
+#: The train description (JSON, :func:`~.metadata.train_description`), latched: published once
+#: per run with transient-local durability, so a tool joining late receives it.
+DESCRIPTION_TOPIC = "train/description"
+DESCRIPTION_TYPE = "std_msgs/msg/String"
 #: Command topics: message type and the plant input each one sets. ``driver_brake_valve``
 #: carries a position name of the driver's brake valve
 #: (:data:`~ltd_brake_ros.inputs.commands.VALVE_POSITIONS`).
@@ -136,13 +140,16 @@ def plant_topics(namespace: str = "/", extras=(), clock: bool = True
     Returns
     -------
     list of (str, str, str)
-        Fully qualified name, message type, ``offered_qos_profiles`` text: the arrays, the
-        stamped state, the extras, ``/clock``, then the command topics.
+        Fully qualified name, message type, ``offered_qos_profiles`` text: the description,
+        the arrays, the stamped state, the extras, ``/clock``, then the command topics.
     """
     def qos(depth: int) -> str:
         return qos_profiles_yaml(depth=depth, liveliness="system_default")
 
-    return ([(qualify(namespace, t), _F64_ARRAY, qos(10)) for t, _, _ in ARRAY_TOPICS]
+    latched = qos_profiles_yaml(depth=1, durability="transient_local",
+                                liveliness="system_default")
+    return ([(qualify(namespace, DESCRIPTION_TOPIC), DESCRIPTION_TYPE, latched)]
+            + [(qualify(namespace, t), _F64_ARRAY, qos(10)) for t, _, _ in ARRAY_TOPICS]
             + [(qualify(namespace, t), JOINT_STATE, qos(10)) for t, _ in STATE_TOPICS]
             + [(qualify(namespace, extra_topic(k)), _F64_ARRAY, qos(10)) for k in extras]
             + ([(CLOCK_TOPIC, "rosgraph_msgs/msg/Clock", qos(1))] if clock else [])
@@ -164,9 +171,14 @@ class StateEncoder:
         :attr:`Snapshot.extras` keys published (per vehicle).
     clock : bool, optional
         Also encode ``/clock``.
+    description : str, optional
+        The train description (:func:`~.metadata.train_description`), encoded before the
+        first state.
     """
 
-    def __init__(self, n_vehicles: int, centre_offset_m=None, extras=(), clock: bool = True):
+    def __init__(self, n_vehicles: int, centre_offset_m=None, extras=(), clock: bool = True,
+                 description: str | None = None):
+        self._description = description
         n, nc = n_vehicles, n_vehicles - 1
         self.extras = tuple(extras)
         self._arrays = [(t, attribute, Float64ArrayEncoder(label, n if label == "vehicle"
@@ -187,7 +199,11 @@ class StateEncoder:
     def encode(self, snap, stamp_ns: int) -> list[tuple[str, bytes]]:
         """``(topic, payload)`` of every state message of ``snap`` (node-relative topics,
         ``/clock`` absolute), stamped ``stamp_ns`` [ns]."""
-        out = [(t, enc.encode(getattr(snap, attribute))) for t, attribute, enc in self._arrays]
+        out = []
+        if self._description is not None:  # once, before the first state
+            out.append((DESCRIPTION_TOPIC, encode_string(self._description)))
+            self._description = None
+        out += [(t, enc.encode(getattr(snap, attribute))) for t, attribute, enc in self._arrays]
         x, v = snap.position_m, snap.speed_m_s
         out.append((self._vehicles_topic,
                     self._vehicles.encode(stamp_ns, x, v, snap.brake_force_N)))

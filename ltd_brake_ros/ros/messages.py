@@ -26,6 +26,15 @@ COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.VOLATILE)
 DIAGNOSTICS_QOS = STATE_QOS
+#: The train description: latched, so a subscriber joining late (RViz, Foxglove, a logger)
+#: receives the current run's.
+DESCRIPTION_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                             reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: Markers: only the newest picture matters.
+MARKERS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE)
 
 
 def time_msg(time_ns: int) -> Time:
@@ -79,3 +88,51 @@ def diagnostics_msg(status: PlantStatus, name: str, hardware_id: str,
         values=[KeyValue(key=k, value=v) for k, v in status.values.items()])])
     msg.header.stamp = time_msg(time_ns)
     return msg
+
+
+def marker_array_msg(specs, frame_id: str, time_ns: int, prefix: str = ""):
+    """``visualization_msgs/MarkerArray`` of :func:`~ltd_brake_ros.plant.markers.train_markers`.
+
+    Parameters
+    ----------
+    specs : list of MarkerSpec
+    frame_id : str
+        The track frame.
+    time_ns : int
+        Simulated time of the state [ns].
+    prefix : str, optional
+        Prepended to each marker namespace (the node's namespace), so several trains'
+        markers do not replace each other.
+
+    Returns
+    -------
+    visualization_msgs.msg.MarkerArray
+    """
+    from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
+    from std_msgs.msg import ColorRGBA
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    stamp = time_msg(time_ns)
+    kinds = {"cube": Marker.CUBE, "text": Marker.TEXT_VIEW_FACING}
+    out = MarkerArray()
+    for m in specs:
+        marker = Marker(ns=f"{prefix}{m.ns}", id=int(m.id), type=kinds[m.kind],
+                        action=Marker.ADD, text=m.text, frame_locked=False,
+                        pose=Pose(position=Point(x=m.x, y=m.y, z=m.z),
+                                  orientation=Quaternion(w=1.0)),
+                        scale=Vector3(x=float(m.size[0]), y=float(m.size[1]),
+                                      z=float(m.size[2])),
+                        color=ColorRGBA(r=m.rgba[0], g=m.rgba[1], b=m.rgba[2], a=m.rgba[3]))
+        marker.header.frame_id = frame_id
+        marker.header.stamp = stamp
+        out.markers.append(marker)
+    return out
+
+
+def clear_markers_msg(frame_id: str):
+    """A ``MarkerArray`` that deletes every marker shown (a new run, another train)."""
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    marker = Marker(action=Marker.DELETEALL)
+    marker.header.frame_id = frame_id
+    return MarkerArray(markers=[marker])

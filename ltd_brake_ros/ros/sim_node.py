@@ -17,7 +17,12 @@ one behind it:
   velocity, effort = brake force) and ``couplers/state`` (``coupler_<j>``: elongation [m],
   its rate [m/s], force); the brake model's further per-vehicle quantities on
   ``vehicles/<quantity>``; ``/clock`` when it is the clock source; ``/diagnostics`` about
-  once per wall second;
+  once per wall second; ``train/description`` (``std_msgs/String``, JSON: the run, every
+  vehicle and coupler with its joint name, units and signs) once per run, latched
+  (transient-local) for tools that join late; ``train/markers``
+  (``visualization_msgs/MarkerArray`` in frame ``map``: a box per vehicle coloured by its
+  brake, a box per coupler coloured by its force against its strength, labels; about 10 per
+  wall second, only while subscribed);
 * ``clock``: ``auto`` publishes ``/clock`` unless another node already does, then follows it;
   ``follow`` advances to the ``/clock`` of another plant (several trains, one simulated time);
   a second ``/clock`` publisher is warned about, naming it;
@@ -56,28 +61,38 @@ from rclpy.node import Node  # noqa: E402
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
-from std_msgs.msg import Bool, Float64MultiArray  # noqa: E402
+from std_msgs.msg import Bool, Float64MultiArray, String  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
+from visualization_msgs.msg import MarkerArray  # noqa: E402
 
 from ..plant.clock_policy import (CLOCK_WATCH_PERIOD_S, ClockWatch,  # noqa: E402
                                   other_publishers, resolve_clock)
 from ..plant.diagnostics import PlantStatus, format_fixed  # noqa: E402
+from ..plant.markers import train_markers  # noqa: E402
 from ..plant.recorder import Recorder  # noqa: E402
 from ..plant.run import (RUN_INPUT_PARAMETERS, PlantRun, check_run_inputs,  # noqa: E402
                          reset_run)
 from ..plant.runner import PlantRunner  # noqa: E402
 from ..simulator import kernels_cached  # noqa: E402
 from ..recording.bag import message_class, type_name  # noqa: E402
+from ..recording.metadata import train_description  # noqa: E402
 from ..recording.plant_topics import (ARRAY_TOPICS, CLOCK_TOPIC, COMMAND_TOPICS,  # noqa: E402
-                                      STATE_TOPICS, StateEncoder)
+                                      DESCRIPTION_TOPIC, STATE_TOPICS, StateEncoder)
 from ..recording.qos import qos_profiles_yaml  # noqa: E402
 from ..simulator import Simulator, Snapshot  # noqa: E402
-from .messages import (CLOCK_QOS, COMMAND_QOS, DIAGNOSTICS_QOS, STATE_QOS,  # noqa: E402
-                       diagnostics_msg)
+from .messages import (CLOCK_QOS, COMMAND_QOS, DESCRIPTION_QOS, DIAGNOSTICS_QOS,  # noqa: E402
+                       MARKERS_QOS, STATE_QOS, clear_markers_msg, diagnostics_msg,
+                       marker_array_msg)
 from .params import (PARAMETERS, RESET_PARAMETERS, StartupError,  # noqa: E402
                      check_run_time_change, declare_parameters)
 
 NODE_NAME = "sim_node"
+#: The train as markers for RViz and Foxglove (visualization_msgs/MarkerArray), in MARKER_FRAME.
+MARKERS_TOPIC = "train/markers"
+#: Frame of the markers: x along the track [m], z up (RViz's default fixed frame).
+MARKER_FRAME = "map"
+#: Wall time between two marker pictures of a train of up to 100 vehicles [s].
+MARKER_PERIOD_S = 0.1
 DIAGNOSTICS_TOPIC = "/diagnostics"
 #: Input topics: message class and the plant input each one sets (the one table of
 #: :mod:`~ltd_brake_ros.recording.plant_topics`, which the published topics come from too).
@@ -136,11 +151,18 @@ class SimNode(Node):
                                               self._created, clock_topic)
         if line:
             log.info(line)
-        self._outputs = {topic: self.create_publisher(Float64MultiArray, topic, STATE_QOS)
-                         for topic, _, _ in ARRAY_TOPICS}
+        self._outputs = {DESCRIPTION_TOPIC: self.create_publisher(String, DESCRIPTION_TOPIC,
+                                                                  DESCRIPTION_QOS)}
+        self._outputs.update({topic: self.create_publisher(Float64MultiArray, topic, STATE_QOS)
+                              for topic, _, _ in ARRAY_TOPICS})
         self._outputs.update({topic: self.create_publisher(JointState, topic, STATE_QOS)
                               for topic, _ in STATE_TOPICS})
         self._add_extra_publishers(self.plant_run)
+        # not recorded: a picture of the state, sent only while someone looks
+        self._markers = self.create_publisher(MarkerArray, MARKERS_TOPIC, MARKERS_QOS)
+        self._next_markers_wall = 0.0
+        self._marker_prefix = self.get_namespace().strip("/")
+        self._marker_prefix += "/" if self._marker_prefix else ""
         if self.clock_mode == "publish":
             self._outputs[CLOCK_TOPIC] = self.create_publisher(Clock, CLOCK_TOPIC, CLOCK_QOS)
             watch = ClockWatch(clock_topic)
@@ -349,9 +371,24 @@ class SimNode(Node):
             self._encoded_sim = sim
             self._encoder = StateEncoder(sim.n, sim.model.train.centre_offset_m,
                                          extras=snap.extras,
-                                         clock=CLOCK_TOPIC in self._outputs)
+                                         clock=CLOCK_TOPIC in self._outputs,
+                                         description=train_description(
+                                             sim, self.plant_run.metadata()))
+            self._next_markers_wall = 0.0
+            if self._markers.get_subscription_count():  # the last run's train goes
+                self._markers.publish(clear_markers_msg(MARKER_FRAME))
         for topic, data in self._encoder.encode(snap, self.runner.stamp_ns):
             self._emit(topic, data)
+        now = time.monotonic()
+        if now >= self._next_markers_wall and self._markers.get_subscription_count():
+            # at most every MARKER_PERIOD_S of wall time, longer for long trains
+            self._next_markers_wall = now + MARKER_PERIOD_S * max(1.0, sim.n / 100.0)
+            c, lim = sim.consist, sim.limits
+            self._markers.publish(marker_array_msg(train_markers(
+                snap.position_m, [v.length_m for v in c.vehicles], snap.brake_force_N,
+                lim.full_scale_N, snap.coupler_force_N, lim.draft_strength_N,
+                lim.buff_strength_N, [v.name for v in c.vehicles]), MARKER_FRAME,
+                self.runner.stamp_ns, self._marker_prefix))
 
     def _publish_status(self, status: PlantStatus) -> None:
         self._emit(DIAGNOSTICS_TOPIC, diagnostics_msg(

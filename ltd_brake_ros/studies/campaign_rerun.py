@@ -22,7 +22,7 @@ from ..inputs.campaign import Campaign, load_campaign
 from ..plant.recorder import Recorder
 from ..plant.settings import StartupError
 from ..recording.cdr_encode import encode_bool, encode_float64
-from ..recording.metadata import run_metadata
+from ..recording.metadata import run_metadata, train_description
 from ..recording.plant_topics import COMMAND_TOPICS, StateEncoder, plant_topics, qualify
 from ..simulator import Commands, SimulationError, Simulator
 from .campaign import CHUNK_S, SCRIPT_CHUNK_S, draw, models
@@ -168,7 +168,8 @@ def rerun(c: Campaign, run_id: int, manoeuvre: str, out, *, namespace: str = "/"
         **({"command_time_s": 0.0} if m.kind != "traction_start" else {}))  # a brake command
     # the node's messages: arrays, stamped state, the brake model's extras, /clock
     extras = tuple(sim.snapshot().extras)
-    encoder = StateEncoder(sim.n, sim.model.train.centre_offset_m, extras=extras)
+    encoder = StateEncoder(sim.n, sim.model.train.centre_offset_m, extras=extras,
+                           description=train_description(sim, meta))
     rec = Recorder(str(out), plant_topics(namespace, extras), _log, metadata=meta)
     messages = [0]
 

@@ -141,10 +141,12 @@ def test_topics_are_the_nodes():
     from ltd_brake_ros.recording.qos import qos_profiles_yaml
     from ltd_brake_ros.recording.ros_types import type_name
     from ltd_brake_ros.ros import sim_node
-    from ltd_brake_ros.ros.messages import CLOCK_QOS, COMMAND_QOS, STATE_QOS
+    from ltd_brake_ros.ros.messages import CLOCK_QOS, COMMAND_QOS, DESCRIPTION_QOS, STATE_QOS
 
-    node = ([(f"/{t}", "std_msgs/msg/Float64MultiArray", qos_profiles_yaml(STATE_QOS))
-             for t, _, _ in sim_node.ARRAY_TOPICS]
+    node = ([(f"/{sim_node.DESCRIPTION_TOPIC}", "std_msgs/msg/String",
+              qos_profiles_yaml(DESCRIPTION_QOS))]
+            + [(f"/{t}", "std_msgs/msg/Float64MultiArray", qos_profiles_yaml(STATE_QOS))
+               for t, _, _ in sim_node.ARRAY_TOPICS]
             + [(f"/{t}", type_name(sim_node.JointState), qos_profiles_yaml(STATE_QOS))
                for t, _ in sim_node.STATE_TOPICS]
             + [(sim_node.CLOCK_TOPIC, "rosgraph_msgs/msg/Clock", qos_profiles_yaml(CLOCK_QOS))]

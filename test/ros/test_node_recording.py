@@ -7,6 +7,8 @@ line) and, for the run's physics, the offline simulator.
 """
 from __future__ import annotations
 
+import json
+
 import math
 import signal
 import time
@@ -139,7 +141,8 @@ def test_recorded_run_round_trips_through_independent_readers_and_reports_like_o
     assert (folder / "metadata.yaml").is_file()
     expected_topics = {f"{ns}/{t}" for t in (*ARRAY_TOPICS, *STATE_TOPICS, "clock",
                                              "brake_command", "brake_demand",
-                                             "traction_command", "driver_brake_valve")} \
+                                             "traction_command", "driver_brake_valve",
+                                             "train/description")} \
         | {"/diagnostics"}
     assert set(recorded) == expected_topics
     channels = {c.topic: c for c in summary.channels.values()}
@@ -169,6 +172,10 @@ def test_recorded_run_round_trips_through_independent_readers_and_reports_like_o
                 recorded[f"{ns}/{short}"]] == [repr(m.data) for t, m in sent if t == short]
     assert [deserialize_message(d, String).data for _, _, d in
             recorded[f"{ns}/driver_brake_valve"]] == ["lap"]
+    # the train description once, at t = 0, as the run information of the recording says
+    (t_desc, _, d_desc), = recorded[f"{ns}/train/description"]
+    description = json.loads(deserialize_message(d_desc, String).data)
+    assert t_desc == 0 and description["run"]["consist"]["vehicles"] == 33
 
     # --- what the subscriber received: byte-identical, in the recorded order
     for topic in (*ARRAY_TOPICS, "clock"):

@@ -405,20 +405,23 @@ def test_topics_qos_and_services_are_wired_as_documented(ros_context, clock):
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64, String
+    from visualization_msgs.msg import MarkerArray
 
     from ltd_brake_ros.ros.sim_node import SimNode
 
     node = SimNode(context=ros_context, namespace="/wired", parameter_overrides=[
         Parameter("lockstep", value=True), Parameter("clock", value=clock)])
     try:
-        # state topics lossless for a reader that keeps up, /clock only the newest, commands
-        # deep; nothing latched
+        # state topics lossless for a reader that keeps up, /clock and markers only the newest,
+        # commands deep; only the description latched
         outputs = {f"/wired/{topic}": (Float64MultiArray, 10) for topic in
                    ("vehicles/speed", "vehicles/position", "vehicles/brake_force",
                     "vehicles/traction_force", "couplers/force")}
         outputs |= {f"/wired/{topic}": (JointState, 10) for topic in
                     ("vehicles/state", "couplers/state")}
         outputs["/diagnostics"] = (DiagnosticArray, 10)
+        outputs["/wired/train/description"] = (String, 1)  # latched: checked below
+        outputs["/wired/train/markers"] = (MarkerArray, 1)
         if clock == "publish":
             outputs["/clock"] = (Clock, 1)
         inputs = {"/wired/brake_command": Bool, "/wired/brake_demand": Float64,
@@ -434,10 +437,12 @@ def test_topics_qos_and_services_are_wired_as_documented(ros_context, clock):
         endpoints += [(subscriptions[t], typ, 1000) for t, typ in inputs.items()]
         for endpoint, msg_type, depth in endpoints:
             q = endpoint.qos_profile
+            latched = endpoint.topic_name == "/wired/train/description"
             assert endpoint.msg_type is msg_type, endpoint.topic_name
             assert (q.history, q.depth, q.reliability, q.durability) == (
                 HistoryPolicy.KEEP_LAST, depth, ReliabilityPolicy.RELIABLE,
-                DurabilityPolicy.VOLATILE), endpoint.topic_name
+                DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE), \
+                endpoint.topic_name
         services = {s.service_name: s.srv_type for s in node.services}
         for name, srv_type in (("reset", Trigger), ("pause", SetBool), ("step", Trigger)):
             assert services.get(f"/wired/sim_node/{name}") is srv_type, name
@@ -485,6 +490,75 @@ def test_simulation_error_is_reported_and_reset_recovers(ros_context, probe, mon
         topics = {topic for topic, _, inbound in seen if not inbound}
         assert {"/inproc/vehicles/speed", "/inproc/couplers/force", "/clock",
                 "/diagnostics"} <= topics
+    finally:
+        probe.executor.remove_node(node)
+        node.close()
+
+
+def test_a_late_subscriber_gets_the_description_and_a_viewer_sees_the_train(ros_context,
+                                                                             probe):
+    import json
+
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    from ltd_brake_ros.ros.sim_node import SimNode
+
+    node = SimNode(context=ros_context, namespace="/seen",
+                   parameter_overrides=[Parameter("lockstep", value=True),
+                                        Parameter("consist", value="scenario_6"),
+                                        Parameter("clock", value="publish")])
+    probe.executor.add_node(node)
+    node.start()
+    try:
+        name = "/seen/sim_node"
+        assert probe.call(Trigger, f"{name}/step", Trigger.Request()).success
+        # joins after the description was published: a transient-local reader still gets it
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        got = []
+        probe.node.create_subscription(String, "/seen/train/description", got.append, latched)
+        probe.spin_until(lambda: got, 20, "the latched description")
+        d = json.loads(got[0].data)
+        assert d["run"]["consist"]["vehicles"] == 33 and len(d["vehicles"]) == 33
+        assert d["vehicles"][0]["joint"] == "vehicle_0" and d["vehicles"][0]["type"] == "E402B"
+        assert d["couplers"][0] == {"index": 1, "joint": "coupler_1", "between": [0, 1],
+                                    "draft_strength_kN": 850.0, "buff_strength_kN": 2000.0}
+        assert d["brake_model"] == "uic_empirical" and "draft (tension) positive" in \
+            d["conventions"]["signs"]
+        # markers only while someone looks: one box per vehicle and coupler, labels
+        probe.subscribe("/seen/train/markers", MarkerArray)
+        probe.wait_matched(["/seen/train/markers"])
+        probe.publish("/seen/brake_command", Bool(data=True))
+        for _ in range(250):  # 5 s of braking: the wagons' cylinders fill in about 5 s
+            assert probe.call(Trigger, f"{name}/step", Trigger.Request()).success
+        received = probe.received["/seen/train/markers"]
+
+        def late() -> bool:  # a picture of the train after 4 s of braking
+            return bool(received) and received[-1].markers[0].header.stamp.sec >= 4
+
+        for _ in range(100):
+            if late():
+                break
+            probe.spin_for(0.15)  # beyond the markers' period: the next step shows
+            assert probe.call(Trigger, f"{name}/step", Trigger.Request()).success
+            probe.spin_for(0.05)
+        assert late(), "no marker picture of the braking train"
+        markers = received[-1].markers
+        by_ns = {}
+        for m in markers:
+            by_ns.setdefault(m.ns, []).append(m)
+        assert {k: len(v) for k, v in by_ns.items()} == {
+            "seen/vehicles": 33, "seen/couplers": 32, "seen/labels": 33}
+        head, second = by_ns["seen/vehicles"][:2]
+        assert head.type == Marker.CUBE and head.header.frame_id == "map"
+        # the head ahead of the wagon behind by half their lengths (19.42 / 2 + 12.64 / 2 m),
+        # give or take the coupler's deflection (its travel is below 0.15 m)
+        assert head.pose.position.x - second.pose.position.x == pytest.approx(16.03, abs=0.15)
+        # braking: the wagons' boxes are no longer grey (orange has more red than blue)
+        assert second.color.r > second.color.b + 0.1
+        assert by_ns["seen/labels"][0].text == "0 E402B"
     finally:
         probe.executor.remove_node(node)
         node.close()
