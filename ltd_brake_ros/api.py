@@ -539,7 +539,7 @@ def read_recording(path: str | os.PathLike, namespace: str | None = None) -> Rec
              "vehicles/traction_force": "traction_force_N",
              "couplers/force": "coupler_force_N"}
     rows: dict[float, dict] = {}
-    for name, t, _log, value in plant_samples(path, report.namespace):
+    for name, t, _log, value in plant_samples(path, report.namespace, report.stamped):
         if name in names and name in ARRAYS:
             rows.setdefault(round(t, 9), {})[names[name]] = np.asarray(value, float)
     times = sorted(rows)

@@ -68,7 +68,7 @@ def write_csv(report: RunReport, outdir) -> list[Path]:
             handles[name].write(header + "\n")
 
         create(BRAKE_COMMAND, "time_s,emergency")
-        for name, t, log_ns, value in plant_samples(report.source, report.namespace):
+        for name, t, log_ns, value in plant_samples(report.source, report.namespace, report.stamped):
             if name == BRAKE_COMMAND:
                 handles[name].write(f"{log_ns * 1e-9:.9f},{int(value)}\n")
                 continue

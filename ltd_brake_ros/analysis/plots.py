@@ -12,7 +12,7 @@ from .brake_pipe_plots import profiles_figure
 if TYPE_CHECKING:
     from .report import RunReport
 
-__all__ = ["write_plots"]
+__all__ = ["render_markers", "write_plots"]
 
 
 def write_plots(report: RunReport, outdir) -> list[Path]:
@@ -150,3 +150,54 @@ def _limit_lines(ax, report: RunReport, couplers: np.ndarray) -> None:
         if finite.any() and peak >= 0.5 * float(values[finite].min()):
             ax.step(couplers, sign * np.where(finite, values, np.nan) / 1e3, where="mid",
                     color="k", ls=style, lw=1, label=label)
+
+
+def render_markers(specs, path, title: str = "", window_m: float = 120.0) -> Path:
+    """Draw a plant's markers (:func:`~ltd_brake_ros.plant.markers.train_markers`) as a PNG.
+
+    A side view of what RViz or Foxglove's 3D panel shows, x along the track [m] and z up
+    [m]: the whole train above, the head end enlarged below; the boxes in their colours, the
+    labels in the enlarged view.
+
+    Parameters
+    ----------
+    specs : list of MarkerSpec
+    path : str or path-like
+        The PNG file (written whole or not at all).
+    title : str, optional
+    window_m : float, optional
+        Track behind the head shown enlarged [m].
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Rectangle
+
+    boxes = [m for m in specs if m.kind == "cube"]
+    head = max(m.x + m.size[0] / 2 for m in boxes)
+    tail = min(m.x - m.size[0] / 2 for m in boxes)
+    fig = Figure(figsize=(11, 4.2), layout="constrained")
+    FigureCanvasAgg(fig)
+    whole, near = fig.subplots(2, 1, height_ratios=(1, 1.6))
+    for ax, left, labels in ((whole, tail, False), (near, max(tail, head - window_m), True)):
+        for m in boxes:
+            ax.add_patch(Rectangle((m.x - m.size[0] / 2, m.z - m.size[2] / 2), m.size[0],
+                                   m.size[2], facecolor=m.rgba[:3], edgecolor="0.2",
+                                   lw=0.4, zorder=3 if m.ns.endswith("couplers") else 2))
+        for m in specs:
+            if labels and m.kind == "text" and left <= m.x <= head:
+                ax.text(m.x, 2.4, m.text, ha="center", va="center", fontsize=7)
+        ax.plot([left - 2, head + 2], [0, 0], color="0.3", lw=1.5)  # the rail
+        ax.set_xlim(left - 2, head + 2)
+        ax.set_ylim(-0.5, 5.0)
+        ax.set_yticks([])
+    whole.set_title(title, fontsize=9)
+    near.set_xlabel("position along the track [m] (head to the right); enlarged: the "
+                    "head end")
+    p = Path(path)
+    with checked_output(p, "wb") as fh:
+        fig.savefig(fh, format="png", dpi=130)
+    return p

@@ -54,17 +54,19 @@ CSV export re-reads the file.
 """
 from __future__ import annotations
 
+import warnings
 from array import array
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..physics.constants import KMH_PER_MS, STANDSTILL_M_S
-from ..recording.reader import BagError, bag_info
+from ..recording.cdr import decode_string
+from ..recording.reader import BagError, TruncatedBagWarning, bag_info, read_bag
 from ..simulator import CouplerPeaks
 from ..verdicts import (CRITERIA, SampledDemand, TrainLimits, Verdicts,
                         default_coupler_limits, judge, limits_from_metadata)
-from .samples import BRAKE_COMMAND, plant_samples
+from .samples import BRAKE_COMMAND, DESCRIPTION, plant_samples
 
 __all__ = ["RunReport", "analyse"]
 
@@ -231,6 +233,12 @@ class RunReport:
         The limits the verdicts judge by.
     verdicts : Verdicts or None
         Strength and adhesion verdicts (None: no vehicle speeds recorded).
+    stamped : bool
+        Times come from the stamped states (a recording by another recorder, e.g.
+        ``ros2 bag record``), not from the log times.
+    notes : list of str
+        Where the time base and the run information came from, and what could not be
+        recovered.
     """
 
     source: str
@@ -283,6 +291,8 @@ class RunReport:
     limits: TrainLimits | None = None
     verdicts: Verdicts | None = None
     plots: list = field(default_factory=list)
+    stamped: bool = False
+    notes: list = field(default_factory=list)
 
     @property
     def has_brake_pipe(self) -> bool:
@@ -313,6 +323,8 @@ class RunReport:
                 "tail_fill_time_s", "head_wagon_index")}
         out["sign_convention"] = _SIGN
         out["plots"] = [str(p) for p in self.plots]
+        out["time_base"] = "state header stamps" if self.stamped else "log times"
+        out["notes"] = list(self.notes)
         return out
 
     def describe(self) -> str:
@@ -366,6 +378,7 @@ class RunReport:
             lines += [f"  {line}" for line in self.verdicts.describe()]
         for p in self.plots:
             lines.append(f"Plot: {p}")
+        lines += [f"Note: {note}" for note in self.notes]
         return "\n".join(lines)
 
     def _describe_pipe(self) -> list[str]:
@@ -403,6 +416,51 @@ def _shown(value, spec: str) -> str:
     return format(number, spec) if number is not None else f"{value!s:.40}"
 
 
+def _time_base(path, info, ns: str) -> tuple[dict, bool, list]:
+    """Run information, whether to read simulated time from the state stamps, and notes.
+
+    A plant's own recording (``record:=true``, ``simulate --record``, ``campaign rerun``)
+    stores its run information and logs every message at its simulated time. Another
+    recorder (``ros2 bag record``) logs receive times: then time comes from the stamped
+    states, and the run information from the latched train description if it was recorded.
+    """
+    import json
+
+    if isinstance(info.metadata.get("consist"), dict):
+        return info.metadata, False, []
+    notes = []
+    stamped = f"{ns}/vehicles/state" in info.topics
+    if stamped:
+        notes.append("not a plant's own recording: times are the simulated times stamped on "
+                     f"{ns}/vehicles/state and {ns}/couplers/state, not the receive times")
+    else:
+        notes.append(f"no run information and no {ns}/vehicles/state: times are the log "
+                     "times, which another recorder sets to receive times")
+    metadata = dict(info.metadata)
+    topic = f"{ns}/{DESCRIPTION}"
+    if topic in info.topics:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", TruncatedBagWarning)
+            for name, _type, _log, data in read_bag(path):
+                if name != topic:
+                    continue
+                try:
+                    run = json.loads(decode_string(data)).get("run")
+                except (ValueError, AttributeError):
+                    run = None
+                if isinstance(run, dict):
+                    metadata.update(run)
+                    notes.append(f"run information from {topic}")
+                else:
+                    notes.append(f"{topic} does not hold a train description: consist, limits "
+                                 "and speed unknown")
+                break
+    else:
+        notes.append(f"no {topic} recorded: consist, limits and initial speed unknown "
+                     "(verdicts use the default limits)")
+    return metadata, stamped, notes
+
+
 def _find_namespace(path, topics, namespace: str | None) -> str:
     if namespace is not None:
         return namespace.rstrip("/")
@@ -435,6 +493,7 @@ def analyse(path, namespace: str | None = None) -> RunReport:
     """
     info = bag_info(path)
     ns = _find_namespace(path, info.topics, namespace)
+    metadata, stamped, notes = _time_base(path, info, ns)
     watch = None  # verdict tracking, once the train's size is known
     speed = _Series("t", "head", "tail", "vmax")
     pos = _Series("t", "head")
@@ -446,12 +505,12 @@ def analyse(path, namespace: str | None = None) -> RunReport:
     head_wagon = None
     first_position = None
     pipe = _Pipe()
-    for name, t, _log_ns, value in plant_samples(path, ns):
+    for name, t, _log_ns, value in plant_samples(path, ns, stamped):
         if name == "vehicles/speed":
             n_vehicles = value.size
             speed.add(t, value[0], value[-1], float(value.max()))  # forward speed
             if watch is None:
-                watch = _Watch(info.metadata, n_vehicles)
+                watch = _Watch(metadata, n_vehicles)
             watch.speed = value
         elif name == "vehicles/position":
             pos.add(t, value[0])
@@ -491,21 +550,26 @@ def analyse(path, namespace: str | None = None) -> RunReport:
             pipe.cylinder(t, value)
     if not len(speed):
         raise BagError(path, f"{ns}/vehicles/speed", "no samples recorded: nothing to analyse")
-    vehicles = info.metadata.get("consist", {}).get("vehicles") \
-        if isinstance(info.metadata.get("consist"), dict) else None
+    vehicles = metadata.get("consist", {}).get("vehicles") \
+        if isinstance(metadata.get("consist"), dict) else None
     if _number(vehicles) is not None and vehicles != n_vehicles:
         raise BagError(path, f"{ns}/vehicles/speed", f"{n_vehicles} vehicles in the arrays, but "
                        f"the run information says {vehicles}: they are not of one run")
     if command_t is None:
         for key in ("emergency_time_s", "command_time_s"):
-            if _number(info.metadata.get(key)) is not None:
-                command_t = float(info.metadata[key])
+            if _number(metadata.get(key)) is not None:
+                command_t = float(metadata[key])
                 break
+    if command_t is None:
+        notes.append("no emergency command recorded (brake_command true or the driver's "
+                     "brake valve at emergency): no stopping distance")
     ts, vmax = speed.np("t"), speed.np("vmax")
-    rep = RunReport(source=str(path), namespace=ns, metadata=info.metadata,
+    rep = RunReport(source=str(path), namespace=ns, metadata=metadata,
                     topics={k: v.message_count for k, v in info.topics.items()},
                     complete=info.complete, n_vehicles=n_vehicles,
-                    start_time_s=info.start_ns * 1e-9, end_time_s=info.end_ns * 1e-9,
+                    start_time_s=float(ts[0]) if stamped else info.start_ns * 1e-9,
+                    end_time_s=float(ts[-1]) if stamped else info.end_ns * 1e-9,
+                    stamped=stamped, notes=notes,
                     command_time_s=command_t, speed_time_s=ts,
                     head_speed_m_s=speed.np("head"), tail_speed_m_s=speed.np("tail"),
                     brake_time_s=brake.np("t"), head_wagon_brake_force_N=brake.np("head"),
@@ -533,7 +597,7 @@ def analyse(path, namespace: str | None = None) -> RunReport:
         rep.peak_buff_time_s = peaks.buff_time_s
         rep.heat_t0_s, rep.heat_t1_s, rep.heat_force_N = heat.result()
     pipe.result(rep, first_position,
-                command_t if command_t is not None else info.start_ns * 1e-9)
+                command_t if command_t is not None else rep.start_time_s)
     if watch is not None and watch.fits(n_vehicles, rep.n_couplers):
         head = speed.np("head")
 

@@ -13,10 +13,11 @@ from typing import Iterator
 
 import numpy as np
 
-from ..recording.cdr import decode_bool, decode_float64_array, decode_string
+from ..recording.cdr import (decode_bool, decode_float64_array, decode_joint_state,
+                             decode_string)
 from ..recording.reader import BagError, TruncatedBagWarning, read_bag
 
-__all__ = ["ARRAYS", "BRAKE_COMMAND", "plant_samples"]
+__all__ = ["ARRAYS", "BRAKE_COMMAND", "DESCRIPTION", "STATES", "plant_samples"]
 
 F64_ARRAY = "std_msgs/msg/Float64MultiArray"
 BOOL = "std_msgs/msg/Bool"
@@ -27,6 +28,14 @@ ARRAYS = {"vehicles/speed": "vehicle", "vehicles/position": "vehicle",
           "couplers/force": "coupler",
           # gauge pressures of a brake model that has a pipe [Pa]; absent otherwise
           "vehicles/brake_pipe_pressure": "vehicle", "vehicles/brake_cylinder_pressure": "vehicle"}
+#: The stamped state topics (``sensor_msgs/JointState``): topic -> the arrays it carries as
+#: (name, field) pairs; ``header.stamp`` is the simulated time of the state.
+STATES = {"vehicles/state": (("vehicles/position", 0), ("vehicles/speed", 1),
+                             ("vehicles/brake_force", 2)),
+          "couplers/state": (("couplers/force", 2),)}
+JOINT_STATE = "sensor_msgs/msg/JointState"
+#: The latched train description (JSON) under the plant's namespace.
+DESCRIPTION = "train/description"
 #: The emergency command topic under the plant's namespace.
 BRAKE_COMMAND = "brake_command"
 #: The driver's brake valve topic (std_msgs/String); its ``emergency`` position counts as
@@ -57,7 +66,8 @@ class _Train:
                            "describe one train, so no report of it can be right")
 
 
-def plant_samples(path, namespace: str) -> Iterator[tuple[str, float, int, object]]:
+def plant_samples(path, namespace: str, stamped: bool = False
+                  ) -> Iterator[tuple[str, float, int, object]]:
     """The plant's samples of a recording, in log-time order, checked.
 
     Parameters
@@ -66,6 +76,12 @@ def plant_samples(path, namespace: str) -> Iterator[tuple[str, float, int, objec
         Bag folder or ``.mcap`` file (an unfinished one is read to its last complete chunk).
     namespace : str
         Namespace of the plant's topics (``/train1``; ``""`` for the root).
+    stamped : bool, optional
+        Take simulated time from the stamped states (:data:`STATES`) instead of the log
+        times: for a recording made by another recorder (``ros2 bag record``), whose log times
+        are receive times. Positions, speeds, brake and coupler forces then come from the
+        states, each at its stamp; every other message at the stamp of the last state
+        received before it (the state its command or value follows).
 
     Yields
     ------
@@ -79,9 +95,17 @@ def plant_samples(path, namespace: str) -> Iterator[tuple[str, float, int, objec
         The recording cannot be read, or a plant topic holds what the plant never publishes.
     """
     wanted = {f"{namespace}/{name}": (name, element) for name, element in ARRAYS.items()}
+    states = {f"{namespace}/{topic}": fields for topic, fields in STATES.items()}
+    if stamped:  # these arrays come from the states
+        for fields in states.values():
+            for name, _ in fields:
+                wanted.pop(f"{namespace}/{name}", None)
+    else:
+        states = {}
     command = f"{namespace}/{BRAKE_COMMAND}"
     valve = f"{namespace}/{DRIVER_BRAKE_VALVE}"
     train = _Train(path)
+    last_stamp_ns = 0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", TruncatedBagWarning)
         for topic, msg_type, log_ns, data in read_bag(path):
@@ -91,18 +115,36 @@ def plant_samples(path, namespace: str) -> Iterator[tuple[str, float, int, objec
                 expected = STRING
             elif topic in wanted:
                 expected = F64_ARRAY
+            elif topic in states:
+                expected = JOINT_STATE
             else:
                 continue
-            t = log_ns * 1e-9
+            t_ns = last_stamp_ns if stamped else log_ns
+            t = t_ns * 1e-9
             if msg_type != expected:
                 raise BagError(path, topic, f"recorded as {msg_type or 'an unnamed type'}, not "
                                             f"{expected}: not the plant's topic")
             try:
-                value = decode_bool(data) if topic == command else decode_string(data) \
-                    if topic == valve else decode_float64_array(data)
+                if topic in states:
+                    stamp_ns, _names, *values = decode_joint_state(data)
+                else:
+                    value = decode_bool(data) if topic == command else decode_string(data) \
+                        if topic == valve else decode_float64_array(data)
             except ValueError as exc:
                 raise BagError(path, topic, f"message at t = {t:.3f} s does not decode: "
                                             f"{exc}") from None
+            if topic in states:
+                if topic.endswith("vehicles/state"):
+                    last_stamp_ns = stamp_ns
+                t = stamp_ns * 1e-9
+                for name, k in states[topic]:
+                    element = ARRAYS[name]
+                    value = np.asarray(values[k])
+                    if not np.isfinite(value).all():
+                        raise BagError(path, topic, f"non-finite value at t = {t:.3f} s")
+                    train.check(topic, element, t, value.size)
+                    yield name, t, log_ns, value
+                continue
             if topic == command:
                 yield BRAKE_COMMAND, t, log_ns, value
                 continue

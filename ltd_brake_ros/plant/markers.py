@@ -5,11 +5,12 @@ documentation renders them with matplotlib), in the frame of the track: x along 
 (the vehicles' centre positions, the head the furthest ahead), z up, the rail at z = 0.
 
 * one box per vehicle (namespace ``vehicles``, id = vehicle index), its length less a gap for
-  the couplers, coloured from grey (brake released) to orange (fully applied: the brake force
-  over its full-application scale);
+  the couplers, coloured from grey (brake released) to orange (fully applied: the block force
+  over the full block force);
 * one small box per coupler (``couplers``, id = coupler number, 1 behind the head) between the
-  two vehicles it joins, coloured by its force relative to its strength: grey at 0, red in draft,
-  blue in buff, at full colour from the strength on (magenta where it is beyond);
+  two vehicles it joins, at the buffers' height, coloured by its force relative to its
+  strength: grey at 0, red in draft, blue in buff, the colour's share the square root of the
+  force's (a tenth of the strength shows a third of the colour), magenta beyond the strength;
 * a label over each vehicle (``labels``: index and type; every 10th vehicle of a train of more
   than 100).
 """
@@ -26,7 +27,10 @@ VEHICLE_WIDTH_M, VEHICLE_HEIGHT_M = 3.0, 3.5
 #: Gap left between two boxes where the coupler is drawn [m].
 COUPLER_GAP_M = 1.0
 #: Height of the box bottoms above the rail (wheels and bogies) [m].
-FLOOR_M = 1.0
+FLOOR_M = 0.6
+#: Height of the couplers' boxes above the rail: the buffer centre line, 940-1 065 mm (UIC
+#: 527-1) [m].
+COUPLER_HEIGHT_M = 1.0
 #: Trains longer than this label every 10th vehicle only.
 LABEL_ALL_UP_TO = 100
 
@@ -75,7 +79,7 @@ def _mix(a: np.ndarray, b: np.ndarray, share: float) -> tuple:
     return (*(a + (b - a) * s).round(4).tolist(), 1.0)
 
 
-def train_markers(position_m, length_m, brake_force_N, brake_scale_N, coupler_force_N,
+def train_markers(position_m, length_m, block_force_N, max_block_force_N, coupler_force_N,
                   draft_strength_N, buff_strength_N, names=None) -> list[MarkerSpec]:
     """The markers of a train in one state.
 
@@ -85,10 +89,10 @@ def train_markers(position_m, length_m, brake_force_N, brake_scale_N, coupler_fo
         Each vehicle's centre along the track, head first [m].
     length_m : array_like
         Each vehicle's length over buffers [m].
-    brake_force_N : array_like
-        Each vehicle's retarding brake force [N].
-    brake_scale_N : array_like
-        Each vehicle's retarding force when fully applied [N] (0: unbraked or unknown).
+    block_force_N : array_like
+        Each vehicle's force on its blocks or pads [N].
+    max_block_force_N : array_like
+        Each vehicle's full block force [N] (0: unbraked).
     coupler_force_N : array_like
         Each coupler's force, coupler 1 first [N, draft positive].
     draft_strength_N, buff_strength_N : array_like
@@ -103,8 +107,8 @@ def train_markers(position_m, length_m, brake_force_N, brake_scale_N, coupler_fo
     """
     x = np.asarray(position_m, float)
     length = np.asarray(length_m, float)
-    brake = np.asarray(brake_force_N, float)
-    scale = np.asarray(brake_scale_N, float)
+    brake = np.asarray(block_force_N, float)
+    scale = np.asarray(max_block_force_N, float)
     force = np.asarray(coupler_force_N, float)
     n = x.size
     out = []
@@ -121,8 +125,10 @@ def train_markers(position_m, length_m, brake_force_N, brake_scale_N, coupler_fo
         limit = float(draft_strength_N[j - 1] if f >= 0 else buff_strength_N[j - 1])
         limit = limit if np.isfinite(limit) and limit > 0 else 1e6
         share = abs(f) / limit
-        rgba = _MAGENTA if share > 1.0 else _mix(_GREY, _RED if f >= 0 else _BLUE, share)
-        out.append(MarkerSpec("couplers", j, "cube", float((rear + front) / 2), 0.0, FLOOR_M,
+        rgba = _MAGENTA if share > 1.0 else _mix(_GREY, _RED if f >= 0 else _BLUE,
+                                                 share ** 0.5)
+        out.append(MarkerSpec("couplers", j, "cube", float((rear + front) / 2), 0.0,
+                              COUPLER_HEIGHT_M,
                               (COUPLER_GAP_M, 0.6, 0.6), rgba))
     every = 1 if n <= LABEL_ALL_UP_TO else 10
     for i in range(0, n, every):

@@ -385,8 +385,8 @@ class SimNode(Node):
             self._next_markers_wall = now + MARKER_PERIOD_S * max(1.0, sim.n / 100.0)
             c, lim = sim.consist, sim.limits
             self._markers.publish(marker_array_msg(train_markers(
-                snap.position_m, [v.length_m for v in c.vehicles], snap.brake_force_N,
-                lim.full_scale_N, snap.coupler_force_N, lim.draft_strength_N,
+                snap.position_m, sim.length_m, snap.block_force_N, sim.max_block_force_N,
+                snap.coupler_force_N, lim.draft_strength_N,
                 lim.buff_strength_N, [v.name for v in c.vehicles]), MARKER_FRAME,
                 self.runner.stamp_ns, self._marker_prefix))
 

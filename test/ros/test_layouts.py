@@ -78,6 +78,12 @@ def test_foxglove_layout_plots_plant_topics_and_places_every_panel():
     panels = layout["configById"]
     assert sorted(_tree_leaves(layout["layout"])) == sorted(panels)
     plotted = set()
+    # the 3D panel shows the plant's markers in their frame
+    from ltd_brake_ros.ros.sim_node import MARKER_FRAME, MARKERS_TOPIC
+
+    scene = panels.pop("3D!train")
+    assert scene["followTf"] == MARKER_FRAME
+    assert scene["topics"] == {f"/{MARKERS_TOPIC}": {"visible": True}}
     for panel, config in panels.items():
         assert panel.split("!")[0] == "Plot", f"{panel}: only Plot panels are checked here"
         assert config["xAxisVal"] in ("timestamp", "index"), panel

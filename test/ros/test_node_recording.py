@@ -21,7 +21,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rclpy.duration import Duration
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.rosbag2 import Reader as RosbagsReader
 from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock
@@ -32,7 +32,7 @@ from std_srvs.srv import SetBool, Trigger
 from ltd_brake_ros.analysis.plots import write_plots
 from ltd_brake_ros.analysis.report import analyse
 from ltd_brake_ros.inputs import get_scenario
-from ltd_brake_ros.recording.bag import bag_info
+from ltd_brake_ros.recording.bag import bag_info, type_name
 from ltd_brake_ros.studies.runs import emergency_stop
 from node_helpers import (ARRAY_TOPICS, PNG, STATE_TOPICS, chunks_from_log, diagnostics_of,
                           node_argv, plain, read_mcap)
@@ -352,3 +352,94 @@ def test_idle_plant_still_flushes_its_chunks_within_a_second(processes, probe, t
     assert max(delays) < 1.5, delays
     assert proc.stop(signal.SIGINT) == 0, proc.output()
     assert bag_info(folder).complete
+
+
+def test_report_of_a_bag_recorded_by_another_recorder_reads_simulated_time(
+        processes, probe, tmp_path):
+    """A recorder that logs receive times (as ``ros2 bag record`` does) of a run at 4x real
+    time: the report takes time from the states' stamps and the train from the latched
+    description, and stops where the node's own recording says, within one chunk's travel."""
+    import os
+
+    from rclpy.qos import DurabilityPolicy
+
+    from ltd_brake_ros.recording.writer import BagWriter
+
+    ns, own = "/other", tmp_path / "own"
+    types = {**{f"{ns}/{t}": Float64MultiArray for t in ARRAY_TOPICS},
+             **{f"{ns}/{t}": JointState for t in STATE_TOPICS},
+             f"{ns}/clock": Clock, f"{ns}/brake_command": Bool,
+             f"{ns}/train/description": String}
+    import threading
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    heard = []  # (topic, receive time [ns], bytes): what a bag recorder stores
+    # the recorder spins on a thread of its own, as ros2 bag record does: receive times are
+    # when messages arrive, not when the test gets round to them
+    recorder = rclpy.create_node(f"bag_recorder_{os.getpid()}", context=probe.node.context)
+    executor = SingleThreadedExecutor(context=probe.node.context)
+    executor.add_node(recorder)
+    subs = {}
+    for topic, cls in types.items():
+        latched = topic.endswith("description")
+        qos = QoSProfile(depth=DEEP, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched
+                         else DurabilityPolicy.VOLATILE)
+        subs[topic] = recorder.create_subscription(
+            cls, topic, lambda data, topic=topic: heard.append((topic, time.time_ns(), data)),
+            qos, raw=True)
+    stop = threading.Event()
+
+    def spin() -> None:
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=0.005)
+
+    spinner = threading.Thread(target=spin, daemon=True)
+    spinner.start()
+    try:
+        proc = _start(processes, ns, own, "consist:=scenario_1", "real_time_factor:=4.0",
+                      "shutdown_after_stop_s:=1.0")
+        probe.spin_until(lambda: all(s.get_publisher_count() for t, s in subs.items()
+                                     if not t.endswith("brake_command")), 120,
+                         "the recorder matched with the plant")
+        probe.spin_until(lambda: sum(t == f"{ns}/vehicles/state" for t, _, _ in heard) > 20,
+                         60, "states at 4x real time")
+        # the plant's reader of the command matched: a release it has handled (reported in
+        # its diagnostics), then the emergency command a controller would send
+        probe.subscribe("/diagnostics", DiagnosticArray)
+        probe.publish(f"{ns}/brake_command", Bool(data=False))
+        probe.spin_until(lambda: any(int(d.get("inputs_handled", 0)) >= 1 for d in
+                                     diagnostics_of(probe.received["/diagnostics"],
+                                                    f"{ns}/sim_node")), 30,
+                         "the plant to handle the release")
+        probe.publish(f"{ns}/brake_command", Bool(data=True))
+        probe.spin_until(lambda: proc.popen.poll() is not None, 120,
+                         "the stop and the node's end")
+        assert proc.wait(30) == 0, proc.output()
+    finally:
+        stop.set()
+        spinner.join(5)
+        executor.shutdown()
+        recorder.destroy_node()
+    assert any(t.endswith("brake_command") for t, _, _ in heard)
+    other = tmp_path / "other"
+    writer = BagWriter(other)  # no run information: only messages at receive times
+    for topic, cls in types.items():
+        writer.add_topic(topic, type_name(cls))
+    for topic, t_ns, data in sorted(heard, key=lambda h: h[1]):
+        writer.write(topic, bytes(data), t_ns)
+    writer.close()
+
+    mine, theirs = analyse(own), analyse(other)
+    assert theirs.stamped and not mine.stamped
+    assert theirs.start_time_s < 60.0 < time.time()  # simulated seconds, not an epoch
+    assert theirs.metadata["consist"]["vehicles"] == mine.metadata["consist"]["vehicles"] == 11
+    assert any("simulated times stamped" in n for n in theirs.notes)
+    assert any("run information from" in n for n in theirs.notes)
+    # the command applies from the state it follows: the plant and the recorder receive it
+    # within a chunk or two of each other (0.02 s each, 0.45 m at 80 km/h)
+    assert theirs.command_time_s == pytest.approx(mine.command_time_s, abs=0.041)
+    assert theirs.stopping_distance_m == pytest.approx(mine.stopping_distance_m, abs=1.0)
+    assert theirs.peak_buff_kN == pytest.approx(mine.peak_buff_kN, rel=1e-9)
