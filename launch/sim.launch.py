@@ -75,6 +75,7 @@ PARAMETER_ARGUMENTS = {
 CHOICES = {"bool": ["", "true", "false"],
            "clock": ["", "auto", "publish", "follow", "none"],
            "use_sim_time": ["", "true", "false"],
+           "log_level": ["debug", "info", "warn", "error", "fatal"],
            "end_launch_on_exit": ["true", "false"]}
 #: Arguments that do not set a parameter: argument -> (default, description).
 OTHER_ARGUMENTS = {
