@@ -73,9 +73,10 @@ def main(argv: list[str] | None = None) -> int:
     Returns
     -------
     int
-        Exit status: 0 success, 2 bad input or an output that cannot be written, 3 simulation
-        failure, 130 interrupted, 143 terminated (SIGTERM), 141 the output was closed early
-        (as a shell reports a writer ended by SIGPIPE).
+        Exit status: 0 success, 1 a verdict or comparison found worse (FAIL), 2 bad input or
+        an output that cannot be written, 3 simulation failure, 4 a comparison inconclusive
+        (``campaign report --against``), 130 interrupted, 143 terminated (SIGTERM), 141 the
+        output was closed early (as a shell reports a writer ended by SIGPIPE).
     """
     argv = sys.argv[1:] if argv is None else argv
     # a command line starting with a verb builds that verb alone: the others' options (and the
