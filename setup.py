@@ -50,8 +50,9 @@ setup(
             "ros-jazzy-rosgraph-msgs>=2.0,<3",
             "ros-jazzy-rmw-fastrtps-cpp>=8.4,<9",
         ],
-        # ltd-brake campaign: Dask distributed executor and Parquet results
-        "campaign": ["dask[distributed]>=2024.1", "pyarrow>=14"],
+        # ltd-brake campaign: Dask distributed executor, Parquet results, SALib (the sobol and
+        # morris designs and their sensitivity indices; a design's sample is SALib 1.6's)
+        "campaign": ["dask[distributed]>=2024.1", "pyarrow>=14", "salib>=1.6,<1.7"],
         # the Python API's time series as Parquet files
         "analysis": ["pyarrow>=14"],
         # the documentation site (mkdocs build)

@@ -41,31 +41,14 @@ import pyarrow.compute as pc
 from ..inputs import InputError
 from ..studies.campaign import COLUMNS
 from ..studies.campaign_exec import read_results
-from ..verdicts import MEAN_ADHESION_MIN_INITIAL_KMH
+from .campaign_kpis import KPIS, NO_VALUE
 
 __all__ = ["DECIDING", "KPIS", "OUTCOMES", "as_json", "bootstrap_quantile", "campaign_report",
            "exit_status", "format_report", "pairing", "parse_kpis", "parse_thresholds",
            "worst_runs"]
 
-#: KPI columns summarised: column -> (label, worse direction); +1: a larger value is worse,
-#: -1: a smaller one is (buff forces are negative: a more negative one is worse). Units are
-#: the columns' own (:data:`~ltd_brake_ros.studies.campaign.COLUMNS`).
-KPIS = {
-    "peak_draft_kN": ("peak draft force", +1),
-    "peak_buff_kN": ("peak buff force (negative)", -1),
-    "mean_adhesion": (f"largest mean utilised adhesion (stops from "
-                      f"{MEAN_ADHESION_MIN_INITIAL_KMH:.0f} km/h)", +1),
-    "max_adhesion_demand": ("largest adhesion demand above 30 km/h", +1),
-    "stopping_distance_m": ("stopping distance", +1),
-}
 #: KPIs that decide the relative approach unless ``kpis`` (``--kpi``) names others.
 DECIDING = ("peak_draft_kN", "peak_buff_kN")
-#: Why a successful run has no value of a KPI (other KPIs: "no value").
-NO_VALUE = {
-    "stopping_distance_m": "did not stop",
-    "mean_adhesion": f"not assessed (no stop from {MEAN_ADHESION_MIN_INITIAL_KMH:.0f} km/h or "
-                     "more)",
-}
 #: Alias that ``worst_runs`` (``campaign rerun --kpi``) accepts: the magnitude of
 #: ``peak_buff_kN``, which ranks runs as ``peak_buff_kN`` does.
 ABS_BUFF = "abs_peak_buff_kN"
@@ -404,7 +387,9 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
         ``expected_tail_points``), ``verdict_counts``, ``exceedance``, ``worst`` and
         ``relative`` (a list, see :func:`_compare`). With ``against``, also ``reference``,
         ``pairing`` (:func:`pairing`), ``quantile``, ``margin``, ``deciding`` and
-        ``outcome`` (a key of :data:`OUTCOMES`).
+        ``outcome`` (a key of :data:`OUTCOMES`). A designed experiment (``grid``, ``sobol``,
+        ``morris``) adds ``sensitivity``
+        (:func:`~ltd_brake_ros.analysis.sensitivity.sensitivity_report`).
 
     Raises
     ------
@@ -473,6 +458,13 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
         if plots is not None:
             rep["plots"] += _plots(Path(plots), name, part, ref_part, rep["name"],
                                    rep.get("reference"))
+    # a designed experiment (grid, sobol, morris): its design and sensitivity indices
+    if meta.get("sampling") in ("grid", "sobol", "morris"):
+        from .sensitivity import design_note, sensitivity_report
+
+        rep["warnings"].append(design_note(meta["sampling"]))
+        rep["sensitivity"] = sensitivity_report(folder, meta, table, confidence=confidence,
+                                                seed=seed)
     if against is not None:
         votes = [v for sec in rep["manoeuvres"].values() for v in sec["relative"]
                  if v["deciding"] and v["verdict"] != "not assessed"]
@@ -802,6 +794,10 @@ def format_report(rep: dict) -> str:
     if "outcome" in rep:
         lines.append(f"relative approach: {rep['outcome']} (deciding KPIs: "
                      f"{', '.join(rep['deciding'])}; exit status {exit_status(rep)})")
+    if rep.get("sensitivity"):  # a designed experiment
+        from .sensitivity import format_sensitivity
+
+        lines += format_sensitivity(rep["sensitivity"])
     for p in rep["plots"]:
         lines.append(f"plot: {p}")
     return "\n".join(lines)

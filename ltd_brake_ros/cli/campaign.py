@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .options import positive_int
+from .options import check_output_file, positive_int
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -65,6 +65,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     q.add_argument("--worst", type=int, default=5, metavar="N",
                    help="worst runs listed (default 5)")
     q.add_argument("--plots", metavar="DIR", help="write CDF and histogram PNGs here")
+    q.add_argument("--html", metavar="FILE",
+                   help="also write the report as one self-contained HTML file (figures "
+                        "embedded, no external resources: it opens offline)")
+    q.add_argument("--force", action="store_true", help="replace an existing --html file")
     q.add_argument("--json", action="store_true", help="print JSON instead of text")
     q.set_defaults(func=report)
     w = sub.add_parser(
@@ -266,11 +270,21 @@ def report(args: argparse.Namespace) -> int:
     if (args.kpi or args.independent) and args.against is None:
         raise InputError("--kpi" if args.kpi else "--independent", "",
                          "applies to the relative approach: give --against REF_DIR")
+    if args.force and args.html is None:
+        raise InputError("--force", "", "applies to --html FILE")
+    if args.html is not None:  # refused before the report is computed
+        check_output_file(args.html, "--html", force=args.force)
     rep = campaign_report(args.dir, against=args.against,
                           thresholds=parse_thresholds(args.threshold), quantile=args.quantile,
                           confidence=args.confidence, margin=args.margin, kpis=kpis,
                           independent=args.independent, worst=args.worst, plots=args.plots)
+    if args.html is not None:
+        from ..analysis.campaign_html import write_html
+
+        rep["html"] = write_html(rep, args.html, against=args.against)
     print(as_json(rep) if args.json else format_report(rep))
+    if args.html is not None and not args.json:
+        print(f"html: {args.html}")
     return exit_status(rep)
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,7 +21,7 @@ from .consist import MAX_VEHICLES, consist_from_mapping
 from .couplers import load_coupler_lut
 from .schema import Fields, InputError, config_dir, kind_of, load_yaml, resolve_config_path
 
-__all__ = ["Campaign", "Distribution", "Family", "Locomotives", "Manoeuvre", "Variant",
+__all__ = ["Campaign", "Design", "Distribution", "Family", "Locomotives", "Manoeuvre", "Variant",
            "WagonType", "campaign_from_mapping", "file_digest", "fittable_parameters",
            "load_campaign"]
 
@@ -32,6 +33,18 @@ DISTRIBUTIONS = ("fixed", "uniform", "normal", "histogram")
 MANOEUVRES = ("emergency", "service", "traction_start")
 #: Where additional locomotives may stand.
 LOCO_POSITIONS = ("head", "middle", "tail")
+#: Sampling of a campaign: random samples of trains, then designed experiments (:class:`Design`).
+SAMPLINGS = ("monte_carlo", "latin_hypercube", "grid", "sobol", "morris")
+#: The designed experiments among :data:`SAMPLINGS`.
+DESIGNS = ("grid", "sobol", "morris")
+#: Train-level inputs a design may vary besides the uncertainties (and ``speed_kmh:NAME``, the
+#: initial speed of one manoeuvre); ``wagons`` and ``length_m`` set the train's size.
+TRAIN_INPUTS = ("family", "wagons", "length_m", "locomotives", "payload_t", "coupler",
+                "brake_params", "speed_kmh")
+#: Inputs that take the name of a variant (a family, coupler or brake-parameter variant).
+NAMED_INPUTS = ("family", "coupler", "brake_params")
+#: Most levels of one grid input, and most Morris levels.
+MAX_LEVELS, MAX_MORRIS_LEVELS = 1000, 20
 
 
 @dataclass(frozen=True)
@@ -187,6 +200,72 @@ class Manoeuvre:
 
 
 @dataclass(frozen=True)
+class Design:
+    """A designed experiment: which inputs vary, and the design's size.
+
+    Each input sets one or more of the run-level draws of
+    :func:`~ltd_brake_ros.studies.campaign.dimensions` (``wagons`` and ``length_m`` set
+    ``size``; ``speed_kmh`` every manoeuvre's ``speed_kmh:NAME``; ``payload_t`` the payload
+    quantile that every loaded wagon of the train shares), each from a probability u in
+    [0, 1] through the inverse CDF of its distribution, as a random draw would. The draws that
+    no input sets are held: for ``sobol`` and ``morris`` the run-level draws at their median
+    (u = 0.5) and every wagon's draws (type, load, brake position, isolation) those of train
+    0, so that the runs differ in the inputs alone; for ``grid`` they are those of replicate j
+    (``runs`` replicates of every grid point, replicate j the same train at every point).
+
+    Attributes
+    ----------
+    kind : str
+        ``grid`` (full factorial), ``sobol`` (Saltelli's design for Sobol' indices) or
+        ``morris`` (Morris's elementary-effects trajectories).
+    inputs : tuple of str
+        The varied inputs, in the design's column order.
+    dimensions : tuple of tuple of str
+        Per input, the run-level draws it sets.
+    base_runs : int
+        The file's ``runs``: sobol the base sample N, morris the trajectories r, grid the
+        replicates of every grid point.
+    second_order : bool
+        sobol: the design also estimates second-order indices (N (2 D + 2) runs rather than
+        N (D + 2)).
+    levels : int
+        morris: the levels p of every input; level k is the probability (k + 0.5) / p.
+    grid : tuple
+        grid: per input ``("levels", values)`` (values as given: numbers, or variant names)
+        or ``("points", n)`` (the values at probabilities (k + 0.5) / n, k = 0 ... n - 1).
+    """
+
+    kind: str
+    inputs: tuple
+    dimensions: tuple
+    base_runs: int
+    second_order: bool = True
+    levels: int = 4
+    grid: tuple = ()
+
+    @property
+    def block(self) -> int:
+        """Runs of one block: a Saltelli block (2 D + 2 or D + 2), a Morris trajectory
+        (D + 1) or the replicates of one grid point."""
+        d = len(self.inputs)
+        if self.kind == "sobol":
+            return 2 * d + 2 if self.second_order else d + 2
+        return d + 1 if self.kind == "morris" else self.base_runs
+
+    @property
+    def shape(self) -> tuple:
+        """grid: the number of levels of each input."""
+        return tuple(len(v) if k == "levels" else v for k, v in self.grid)
+
+    @property
+    def runs(self) -> int:
+        """Trains of the design."""
+        if self.kind == "grid":
+            return self.base_runs * math.prod(self.shape)
+        return self.base_runs * self.block
+
+
+@dataclass(frozen=True)
 class Campaign:
     """A validated campaign file.
 
@@ -200,9 +279,10 @@ class Campaign:
     seed : int
         Campaign seed; run i draws from (seed, i).
     runs : int
-        Trains drawn; each runs every manoeuvre.
+        Trains drawn; each runs every manoeuvre (with a design: all the design's trains).
     sampling : str
-        ``monte_carlo`` or ``latin_hypercube`` (over the run-level dimensions).
+        ``monte_carlo`` or ``latin_hypercube`` (over the run-level dimensions), or a
+        designed experiment: ``grid``, ``sobol`` or ``morris`` (see ``design``).
     batch_size : int
         Runs per task.
     families : tuple of Family
@@ -227,6 +307,9 @@ class Campaign:
         Every file the campaign reads (its own file, the shipped vehicle types, each model
         variant's file), resolved path -> SHA-256 of its bytes: a results folder is pinned to
         them.
+    design : Design or None
+        The designed experiment of ``grid``, ``sobol`` and ``morris``; None for a random
+        sample.
     """
 
     name: str
@@ -247,6 +330,7 @@ class Campaign:
     vehicle_lengths_m: dict
     document: Any = None
     inputs: dict = dataclasses.field(default_factory=dict)
+    design: Design | None = None
 
     @property
     def batches(self) -> int:
@@ -408,14 +492,22 @@ def _check_masses(w: Fields, tname: str, tare: float, payload: Distribution,
         cases += [("payload_t", "the lightest loaded", tare + payload.support[0]),
                   ("payload_t", "the heaviest loaded", tare + payload.support[1])]
     for key, what, mass in cases:
-        for position in ("P", "G"):
-            try:
-                consist_from_mapping({"vehicle_types": dict(extra), "vehicles": [
-                    {"type": tname, "mass_t": mass, "brake_position": position}]}, w.source)
-            except InputError as exc:
-                field = exc.field.replace("vehicles[0].", f"{tname}.")
-                raise w.error(key, f"{what} {tname} ({mass:g} t) is not a vehicle its type can "
-                              f"be: {field}: {exc.reason}") from None
+        reason = _vehicle_reason(tname, mass, extra, w.source)
+        if reason:
+            raise w.error(key, f"{what} {tname} ({mass:g} t) {reason}")
+
+
+def _vehicle_reason(tname: str, mass: float, extra: Mapping, source: str) -> str:
+    """Why a wagon of type ``tname`` and ``mass`` [t] cannot be built in brake position P or G
+    ('' when it can)."""
+    for position in ("P", "G"):
+        try:
+            consist_from_mapping({"vehicle_types": dict(extra), "vehicles": [
+                {"type": tname, "mass_t": mass, "brake_position": position}]}, source)
+        except InputError as exc:
+            field = exc.field.replace("vehicles[0].", f"{tname}.")
+            return f"is not a vehicle its type can be: {field}: {exc.reason}"
+    return ""
 
 
 def _family(data: Any, source: str, path: str, library: dict, extra: Mapping) -> Family:
@@ -509,6 +601,228 @@ def _manoeuvres(f: Fields) -> tuple:
     return out
 
 
+def _input_dimensions(name: str, err, families: tuple, uncertainties: dict,
+                      manoeuvres: tuple) -> tuple:
+    """The run-level draws that design input ``name`` sets; ``err(reason)`` makes the error."""
+    if name in uncertainties or name in ("family", "locomotives", "payload_t", "coupler",
+                                         "brake_params"):
+        return (name,)
+    if name in ("wagons", "length_m"):
+        other = [fam.name for fam in families if getattr(fam, name) is None]
+        if other:
+            given = "length_m" if name == "wagons" else "wagons"
+            raise err(f"family {other[0]} gives {given}, not {name}: vary {given} instead")
+        return ("size",)
+    names = [m.name for m in manoeuvres]
+    if name == "speed_kmh":
+        return tuple(f"speed_kmh:{m}" for m in names)
+    if name.startswith("speed_kmh:"):
+        if name[len("speed_kmh:"):] not in names:
+            raise err(f"no manoeuvre {name[len('speed_kmh:'):]!r}; the campaign has "
+                      f"{', '.join(names)}")
+        return (name,)
+    if name in fittable_parameters():
+        raise err(f"{name} is not among the campaign's uncertainties: give it a distribution "
+                  "under uncertainties")
+    raise err(f"unknown input {name!r}; known: {', '.join(TRAIN_INPUTS)}, speed_kmh:NAME and "
+              f"the uncertainties ({', '.join(sorted(uncertainties)) or 'none'})")
+
+
+def _check_disjoint(inputs: list, dims: list, err) -> None:
+    """Two inputs may not set the same draw (``speed_kmh`` and ``speed_kmh:NAME``)."""
+    for i, a in enumerate(dims):
+        for j in range(i):
+            common = set(a) & set(dims[j])
+            if common:
+                raise err(i, f"{inputs[i]} and {inputs[j]} both vary {sorted(common)[0]}; "
+                          "keep one")
+
+
+def _input_distributions(name: str, families: tuple, uncertainties: dict,
+                         manoeuvres: tuple) -> list:
+    """The distributions that a grid's ``points`` of input ``name`` are taken from, as
+    (what, Distribution) pairs; sizes and counts as uniform ones."""
+    if name in uncertainties:
+        return [(f"the uncertainty {name}", uncertainties[name])]
+    if name == "payload_t":
+        return [(f"the payload of {w.type} in family {fam.name}", w.payload_t)
+                for fam in families for w in fam.wagon_types if w.loaded_fraction > 0.0]
+    if name in ("wagons", "length_m", "locomotives"):
+        return [(f"family {fam.name}", Distribution("uniform", tuple(
+            fam.locomotives.count if name == "locomotives" else getattr(fam, name))))
+                for fam in families]
+    wanted = {m.name for m in manoeuvres} if name == "speed_kmh" else {name.split(":", 1)[1]}
+    return [(f"the speed of manoeuvre {m.name}", m.speed_kmh) for m in manoeuvres
+            if m.name in wanted]
+
+
+def _grid_levels(g: Fields, name: str, values: list, c: dict) -> tuple:
+    """Explicit levels of grid input ``name``, checked to be values the input can take."""
+    path = g.sub("levels")
+
+    def bad(i: int, reason: str) -> InputError:
+        return InputError(g.source, f"{path}[{i}]", reason)
+
+    if name in NAMED_INPUTS:
+        known = [x.name for x in c[{"family": "families", "coupler": "couplers",
+                                    "brake_params": "brake_params"}[name]]]
+        for i, v in enumerate(values):
+            if v not in known:
+                raise bad(i, f"unknown {name} {v!r}; the campaign has {', '.join(known)}")
+        out = tuple(values)
+    else:
+        out = tuple(g.numbers("levels"))
+        for i, v in enumerate(out):
+            reason = _level_reason(name, v, c)
+            if reason:
+                raise bad(i, reason)
+        if name in ("wagons", "locomotives"):
+            out = tuple(int(v) for v in out)
+    for i, v in enumerate(out):
+        if v in out[:i]:
+            raise bad(i, f"repeats the level {v!r}; give each level once")
+    return out
+
+
+def _level_reason(name: str, v: float, c: dict) -> str:
+    """Why ``v`` cannot be a level of numeric grid input ``name`` ('' when it can)."""
+    if name in c["uncertainties"]:
+        fit = fittable_parameters()[name][1]
+        return out_of_range(v, fit.lower, fit.upper)
+    if name in ("wagons", "locomotives"):
+        if v != int(v):
+            return f"must be a whole number, got {v:g}"
+        if name == "wagons":
+            return out_of_range(v, 1, MAX_VEHICLES - 10)
+        for fam in c["families"]:
+            lo, hi = fam.locomotives.count
+            if not lo <= v <= hi:
+                return (f"family {fam.name} takes {lo} to {hi} locomotives (a position "
+                        f"each), not {v:g}")
+        return ""
+    if name == "length_m":
+        return out_of_range(v, 1.0, 100.0 * MAX_VEHICLES)
+    if name == "payload_t":
+        for fam in c["families"]:
+            for w in fam.wagon_types:
+                if w.loaded_fraction > 0.0:
+                    reason = out_of_range(v, 0.0, 500.0 - w.tare_t)
+                    if reason:
+                        return f"payload of a {w.type} (tare {w.tare_t:g} t): {reason}"
+                    reason = _vehicle_reason(w.type, w.tare_t + v, c["vehicle_types"], "")
+                    if reason:
+                        return f"a {w.type} loaded with {v:g} t {reason}"
+        return ""
+    emergency = any(m.kind == "emergency" and (name == "speed_kmh" or name == f"speed_kmh:"
+                                               f"{m.name}") for m in c["manoeuvres"])
+    return out_of_range(v, 1.0 if emergency else 0.0, 400.0)
+
+
+def _grid_points(g: Fields, name: str, c: dict) -> int:
+    """``points: n`` of grid input ``name``: n distinct values at probabilities (k + 0.5) / n."""
+    if name in NAMED_INPUTS:
+        raise g.error("points", f"applies to numeric inputs; list the {name} names under "
+                      "levels")
+    n = g.integer("points", lo=1, hi=MAX_LEVELS)
+    for what, dist in _input_distributions(name, c["families"], c["uncertainties"],
+                                           c["manoeuvres"]):
+        lo, hi = dist.support
+        if n > 1 and lo == hi:
+            raise g.error("points", f"{what} is fixed at {lo:g}: {n} points would repeat it; "
+                          "list the values under levels")
+        if name in ("wagons", "locomotives") and n > hi - lo + 1:
+            raise g.error("points", f"{what} takes {hi - lo + 1:g} counts of {name} ({lo:g} "
+                          f"to {hi:g}), fewer than {n} points")
+    return n
+
+
+def _design(f: Fields, runs: int, c: dict) -> Design | None:
+    """The designed experiment of ``sampling`` (None for a random sample of trains).
+
+    ``c`` holds the campaign's parts read so far: ``families``, ``couplers``,
+    ``brake_params``, ``uncertainties``, ``manoeuvres`` and ``vehicle_types``.
+    """
+    value = f.data.get("sampling")
+    if value is None or isinstance(value, str):
+        kind = f.string("sampling", "monte_carlo", choices=SAMPLINGS)
+        if kind not in DESIGNS:
+            return None
+        if kind == "grid":
+            raise f.error("sampling", "a grid needs its levels: write sampling: {design: "
+                          "grid, inputs: {NAME: {levels: [...]}}}")
+        value = {"design": kind}
+    elif not isinstance(value, Mapping):
+        raise f.error("sampling", f"must be a name ({', '.join(SAMPLINGS)}) or a mapping "
+                      f"with design: {', '.join(DESIGNS)}; got {kind_of(value)}")
+    d = Fields(value, f.source, "sampling")
+    kind = d.string("design", choices=DESIGNS)
+    d.reject_unknown({"design", "inputs", "second_order", "levels"} if kind != "grid" else
+                     {"design", "inputs"})
+    if kind == "sobol" and "levels" in d.data:
+        raise d.error("levels", "applies to morris designs only")
+    if kind == "morris" and "second_order" in d.data:
+        raise d.error("second_order", "applies to sobol designs only")
+    parts = (c["families"], c["uncertainties"], c["manoeuvres"])
+    if kind == "grid":
+        spec = d.data.get("inputs")
+        if not isinstance(spec, Mapping) or not spec:
+            raise d.error("inputs", "missing or not a mapping of input -> {levels: [...]} or "
+                          "{points: N}")
+        names = [str(k) for k in spec]
+        dims, grid = [], []
+        for name in names:
+            where = d.sub(f"inputs.{name}")
+            dims.append(_input_dimensions(
+                name, lambda r, w=where: InputError(f.source, w, r), *parts))
+            entry = spec[name]
+            g = Fields(entry if isinstance(entry, Mapping) else {"levels": entry}, f.source,
+                       where)
+            g.reject_unknown({"levels", "points"})
+            if g.has("levels") == g.has("points"):
+                raise InputError(f.source, where, "give either levels: [values] or points: N")
+            if g.has("levels") and (not isinstance(g.data["levels"], list)
+                                    or not g.data["levels"]):
+                raise g.error("levels", f"must be a non-empty list, got "
+                              f"{kind_of(g.data['levels'])}")
+            grid.append(("levels", _grid_levels(g, name, g.data["levels"], c))
+                        if g.has("levels") else ("points", _grid_points(g, name, c)))
+        _check_disjoint(names, dims, lambda i, r: InputError(
+            f.source, d.sub(f"inputs.{names[i]}"), r))
+        out = Design("grid", tuple(names), tuple(dims), runs, grid=tuple(grid))
+    else:
+        given = d.data.get("inputs")
+        if given is None:
+            if not c["uncertainties"]:
+                raise d.error("inputs", f"missing: a {kind} design varies the uncertainties "
+                              "unless inputs lists others, and the campaign has none")
+            given = sorted(c["uncertainties"])
+        if not isinstance(given, list) or not given or not all(
+                isinstance(x, str) for x in given):
+            raise d.error("inputs", f"must be a non-empty list of input names, got "
+                          f"{kind_of(given)}")
+        dims = [_input_dimensions(name, lambda r, i=i: InputError(
+            f.source, d.sub(f"inputs[{i}]"), r), *parts) for i, name in enumerate(given)]
+        _check_disjoint(given, dims, lambda i, r: InputError(f.source, d.sub(f"inputs[{i}]"),
+                                                               r))
+        if kind == "sobol":
+            if runs & (runs - 1):
+                below = 1 << (runs.bit_length() - 1)
+                raise f.error("runs", f"a sobol design's base sample N must be a power of 2 "
+                              f"(the Sobol' sequence is balanced only then), got {runs}: take "
+                              f"{below} or {2 * below}")
+            out = Design("sobol", tuple(given), tuple(dims), runs,
+                         second_order=d.boolean("second_order", True))
+        else:
+            p = d.integer("levels", 4, lo=2, hi=MAX_MORRIS_LEVELS)
+            if p % 2:
+                raise d.error("levels", f"must be even (Morris's step of p / (2 (p - 1)) "
+                              f"then reaches every level equally often), got {p}")
+            out = Design("morris", tuple(given), tuple(dims), runs, levels=p)
+    if out.runs > MAX_RUNS:
+        raise f.error("runs", f"the {kind} design has {out.runs} runs, more than {MAX_RUNS}")
+    return out
+
+
 def campaign_from_mapping(data: Any, source: str, digest: str = "",
                           base: Path | None = None) -> Campaign:
     """Validate a campaign document.
@@ -576,17 +890,34 @@ def campaign_from_mapping(data: Any, source: str, digest: str = "",
                             f"{fit.field}")
         uncertainties[str(key)] = dist
     step = f.number("step_s", 0.01, lo=1e-4, hi=0.1)
+    manoeuvres = _manoeuvres(f)
+    design = _design(f, runs, {"families": families, "couplers": coupler_variants,
+                               "brake_params": brake_variants, "uncertainties": uncertainties,
+                               "manoeuvres": manoeuvres, "vehicle_types": dict(extra)})
+    if design is not None and design.kind != "grid":
+        _require_salib(f, design.kind)
     return Campaign(
         name=f.string("name", Path(source).stem), source=str(source), digest=digest,
-        seed=f.integer("seed", lo=0, hi=2**63 - 1), runs=runs,
-        sampling=f.string("sampling", "monte_carlo", choices=("monte_carlo", "latin_hypercube")),
+        seed=f.integer("seed", lo=0, hi=2**63 - 1),
+        runs=design.runs if design is not None else runs,
+        sampling=design.kind if design is not None else f.string("sampling", "monte_carlo"),
         batch_size=f.integer("batch_size", 50, lo=1, hi=100_000), families=families,
         couplers=coupler_variants, brake_params=brake_variants, uncertainties=uncertainties,
-        manoeuvres=_manoeuvres(f),
+        manoeuvres=manoeuvres,
         adhesion_limit=(f.number("adhesion_limit", lo=0.0, lo_open=True, hi=1.0)
                         if f.has("adhesion_limit") else None),
         step_s=step, vehicle_types=dict(extra), vehicle_lengths_m=library,
-        document=None if Path(source).is_file() else data, inputs=files)
+        document=None if Path(source).is_file() else data, inputs=files, design=design)
+
+
+def _require_salib(f: Fields, kind: str) -> None:
+    """One line, before any run, when SALib (which samples sobol and morris designs) is
+    missing."""
+    from importlib.util import find_spec
+
+    if find_spec("SALib") is None:
+        raise f.error("sampling", f"a {kind} design needs SALib, which is not installed: pip "
+                      "install 'ltd_brake_ros[campaign]'")
 
 
 def _has_field(params: Any, field: str) -> bool:

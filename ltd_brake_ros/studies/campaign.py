@@ -2,7 +2,11 @@
 
 Every random number of run i comes from the campaign seed and i alone (numpy's
 ``default_rng([seed, i, stream])``; Latin hypercube columns from ``[seed, dimension]``), so a
-run is the same wherever and in whatever batch it executes.
+run is the same wherever and in whatever batch it executes. A designed experiment
+(:class:`~ltd_brake_ros.inputs.campaign.Design`) sets some of the draws instead: a grid from
+its levels (the others those of replicate j: ``default_rng([seed, j, stream])``), a Sobol' or
+Morris design from row i of its sample in the unit hypercube (SALib, seeded from
+``[seed, 2**31, 2]``), through the same inverse CDFs.
 """
 from __future__ import annotations
 
@@ -24,8 +28,9 @@ from ..inputs.commands import CommandScript
 from ..simulator import Commands, Simulator
 from .runs import emergency_run, scripted_run, summarize
 
-__all__ = ["COLUMNS", "KPI_FIELDS", "SCHEMA_VERSION", "describe_schema", "dimensions", "draw",
-           "inverse_cdf", "models", "run_batch", "run_one", "schema_of", "warm_up"]
+__all__ = ["COLUMNS", "KPI_FIELDS", "SCHEMA_VERSION", "describe_schema", "design_sample",
+           "dimensions", "draw", "inverse_cdf", "models", "run_batch", "run_one", "schema_of",
+           "warm_up"]
 
 #: Simulated time per chunk of an emergency stop [s], and when to give up if the train has not
 #: stopped [s] (as :func:`.runs.emergency_stop`). While the stop is far, several chunks are
@@ -36,6 +41,9 @@ CHUNK_S, MAX_TIME_S = 1.0, 600.0
 SCRIPT_CHUNK_S = 0.5
 #: Stream numbers of ``default_rng([seed, run, stream])``.
 _RUN_STREAM, _WAGON_STREAM = 0, 1
+#: The sample of a Sobol' or Morris design comes from ``default_rng([seed, _DESIGN_RUN,
+#: _DESIGN_STREAM])``: a run id beyond any campaign's, so no run shares its stream.
+_DESIGN_RUN, _DESIGN_STREAM = 2**31, 2
 
 
 def inverse_cdf(dist: Distribution, u: float) -> float:
@@ -91,9 +99,68 @@ def _whole(lo: int, hi: int, u: float) -> int:
 
 
 def dimensions(c: Campaign) -> tuple[str, ...]:
-    """Names of the run-level draws (the Latin hypercube's dimensions), in draw order."""
-    return ("family", "size", "locomotives", "coupler", "brake_params",
+    """Names of the run-level draws (the Latin hypercube's dimensions), in draw order.
+
+    A design that varies ``payload_t`` adds it: the payload quantile that every loaded wagon
+    of the train shares (otherwise each wagon draws its own).
+    """
+    dims = ("family", "size", "locomotives", "coupler", "brake_params",
             *sorted(c.uncertainties), *(f"speed_kmh:{m.name}" for m in c.manoeuvres))
+    if c.design is not None and any("payload_t" in d for d in c.design.dimensions):
+        dims += ("payload_t",)
+    return dims
+
+
+def design_sample(c: Campaign) -> np.ndarray:
+    """The sample of a Sobol' or Morris design in the unit hypercube, one row per run.
+
+    Column j is input j of the design (``c.design.inputs``). Sobol': Saltelli's scheme of a
+    scrambled Sobol' sequence (``SALib.sample.sobol``), blocks of 2 D + 2 (D + 2 without
+    second-order indices) rows. Morris: ``c.design.base_runs`` trajectories of D + 1 rows
+    (``SALib.sample.morris``) on the levels k / (p - 1); level k is drawn at probability
+    (k + 0.5) / p. These are the rows SALib's analysis takes with the runs' results.
+
+    Parameters
+    ----------
+    c : Campaign
+        With a ``sobol`` or ``morris`` design.
+
+    Returns
+    -------
+    ndarray
+        (c.runs, D), read-only.
+
+    Raises
+    ------
+    InputError
+        SALib is not installed.
+    """
+    d = c.design
+    return _salib_sample(d.kind, c.seed, d.base_runs, len(d.inputs), d.second_order, d.levels)
+
+
+@functools.lru_cache(maxsize=4)
+def _salib_sample(kind: str, seed: int, base_runs: int, inputs: int, second_order: bool,
+                  levels: int) -> np.ndarray:
+    """:func:`design_sample` (once per process: every run of a batch takes its row)."""
+    try:
+        from SALib.sample import morris, sobol
+    except ImportError:
+        from ..inputs import InputError
+
+        raise InputError("SALib", "", f"not installed; a {kind} design needs it: pip install "
+                         "'ltd_brake_ros[campaign]'") from None
+    problem = {"num_vars": inputs, "names": [f"x{j}" for j in range(inputs)],
+               "bounds": [[0.0, 1.0]] * inputs}
+    rng = np.random.default_rng([seed, _DESIGN_RUN, _DESIGN_STREAM])
+    if kind == "sobol":
+        x = sobol.sample(problem, base_runs, calc_second_order=second_order, scramble=True,
+                         seed=rng)
+    else:
+        x = morris.sample(problem, base_runs, num_levels=levels, seed=rng)
+    x = np.ascontiguousarray(x, dtype=float)
+    x.setflags(write=False)
+    return x
 
 
 @functools.lru_cache(maxsize=4)
@@ -113,6 +180,44 @@ def _unit_draws(c: Campaign, run_id: int) -> np.ndarray:
     return np.random.default_rng([c.seed, run_id, _RUN_STREAM]).random(dims)
 
 
+def _design_point(c: Campaign, run_id: int) -> tuple[dict, dict, int]:
+    """The draws of run ``run_id``: a probability per run-level draw, the values a grid sets
+    directly (draw -> value), and the train whose wagon draws it takes."""
+    design = c.design
+    dims = dimensions(c)
+    if design is None:
+        return dict(zip(dims, _unit_draws(c, run_id))), {}, run_id
+    if design.kind == "grid":  # run = point * replicates + replicate; last input fastest
+        point, replicate = divmod(run_id, design.base_runs)
+        own = [d for d in dims if d != "payload_t"]
+        u = dict(zip(own, np.random.default_rng([c.seed, replicate, _RUN_STREAM])
+                     .random(len(own))))
+        values = {}
+        for (mode, spec), dims_j, k in zip(design.grid, design.dimensions,
+                                          np.unravel_index(point, design.shape)):
+            for dim in dims_j:
+                if mode == "levels":
+                    values[dim] = spec[k]
+                else:
+                    u[dim] = (k + 0.5) / spec
+        return u, values, replicate
+    x = design_sample(c)[run_id]
+    u = dict.fromkeys(dims, 0.5)  # what the design does not vary: the median draw
+    for j, dims_j in enumerate(design.dimensions):
+        p = float(x[j]) if design.kind == "sobol" else \
+            (float(x[j]) * (design.levels - 1) + 0.5) / design.levels
+        for dim in dims_j:
+            u[dim] = p
+    return u, {}, 0
+
+
+def _variant(items: tuple, dim: str, u: dict, values: dict):
+    """The family or model variant of draw ``dim``: named by a grid, else by weight at u."""
+    if dim in values:
+        return next(x for x in items if x.name == values[dim])
+    return items[_choose([x.weight for x in items], u[dim])]
+
+
 def draw(c: Campaign, run_id: int) -> tuple[dict, dict]:
     """Compose run ``run_id`` of a campaign.
 
@@ -120,7 +225,8 @@ def draw(c: Campaign, run_id: int) -> tuple[dict, dict]:
     ----------
     c : Campaign
     run_id : int
-        0 <= run_id < c.runs.
+        0 <= run_id < c.runs; with a design, its run (a grid's point ``run_id // runs`` and
+        replicate ``run_id % runs``, a row of :func:`design_sample`).
 
     Returns
     -------
@@ -131,15 +237,20 @@ def draw(c: Campaign, run_id: int) -> tuple[dict, dict]:
         The consist document of the train (see
         :func:`~ltd_brake_ros.inputs.consist_from_mapping`).
     """
-    u = dict(zip(dimensions(c), _unit_draws(c, run_id)))
-    fam = c.families[_choose([f.weight for f in c.families], u["family"])]
-    rng = np.random.default_rng([c.seed, run_id, _WAGON_STREAM])
+    u, values, train = _design_point(c, run_id)
+    fam = _variant(c.families, "family", u, values)
+    rng = np.random.default_rng([c.seed, train, _WAGON_STREAM])
     loco = fam.locomotives
-    n_loco = _whole(*loco.count, u["locomotives"])
+    n_loco = values["locomotives"] if "locomotives" in values else \
+        _whole(*loco.count, u["locomotives"])
     lengths = c.vehicle_lengths_m
-    target_m = inverse_cdf(Distribution("uniform", fam.length_m), u["size"]) if fam.length_m \
-        else None
-    n_target = _whole(*fam.wagons, u["size"]) if fam.wagons else None
+    if "size" in values:  # a grid's wagon count or train length
+        target_m = float(values["size"]) if fam.length_m else None
+        n_target = int(values["size"]) if fam.wagons else None
+    else:
+        target_m = inverse_cdf(Distribution("uniform", fam.length_m), u["size"]) \
+            if fam.length_m else None
+        n_target = _whole(*fam.wagons, u["size"]) if fam.wagons else None
     length_m = n_loco * lengths[loco.type]
     wagons, codes, masses, types = [], [], [], []
     shares = [w.share for w in fam.wagon_types]
@@ -152,7 +263,11 @@ def draw(c: Campaign, run_id: int) -> tuple[dict, dict]:
         if target_m is not None and wagons and length_m + lengths[wt.type] > target_m:
             break
         loaded = r_loaded < wt.loaded_fraction
-        mass = wt.tare_t + (inverse_cdf(wt.payload_t, r_payload) if loaded else 0.0)
+        if "payload_t" in values:  # a grid's payload of every loaded wagon
+            payload = float(values["payload_t"])
+        else:  # a design's quantile, shared by the train's loaded wagons, or the wagon's own
+            payload = inverse_cdf(wt.payload_t, u.get("payload_t", r_payload))
+        mass = wt.tare_t + (payload if loaded else 0.0)
         entry = {"type": wt.type, "mass_t": mass,
                  "brake_position": "G" if r_g < fam.g_fraction else "P"}
         isolated = r_iso < fam.isolated_fraction
@@ -172,20 +287,24 @@ def draw(c: Campaign, run_id: int) -> tuple[dict, dict]:
     sample = {
         "family": fam.name, "wagons": len(wagons), "locomotives": n_loco,
         "locomotive_positions": ",".join(loco.positions[:n_loco]),
-        "speed_kmh": {m.name: inverse_cdf(m.speed_kmh, u[f"speed_kmh:{m.name}"])
+        "speed_kmh": {m.name: _value(m.speed_kmh, f"speed_kmh:{m.name}", u, values)
                       for m in c.manoeuvres},
-        "coupler": c.couplers[_choose([v.weight for v in c.couplers], u["coupler"])].name,
-        "brake_params": c.brake_params[_choose([v.weight for v in c.brake_params],
-                                               u["brake_params"])].name,
+        "coupler": _variant(c.couplers, "coupler", u, values).name,
+        "brake_params": _variant(c.brake_params, "brake_params", u, values).name,
         "wagon_types": types, "wagon_mass_t": masses, "wagon_brakes": " ".join(codes),
         "loaded_wagons": sum(k.endswith("L") for k in codes),
         "g_wagons": sum(k.startswith("G") for k in codes),
         "isolated_wagons": sum(k.startswith("x") for k in codes),
     }
     for name in sorted(c.uncertainties):
-        sample[name] = inverse_cdf(c.uncertainties[name], u[name])
+        sample[name] = _value(c.uncertainties[name], name, u, values)
     return sample, {"name": f"{c.name} run {run_id}", "vehicle_types": c.vehicle_types,
                     "vehicles": vehicles}
+
+
+def _value(dist: Distribution, dim: str, u: dict, values: dict) -> float:
+    """Draw ``dim``: a grid's level, else ``dist`` at probability u."""
+    return float(values[dim]) if dim in values else inverse_cdf(dist, u[dim])
 
 
 def models(c: Campaign, sample: dict):
