@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 import threading
 from dataclasses import dataclass, field
 
@@ -40,7 +39,7 @@ from .inputs.commands import COMMAND_RANGES
 from .physics import brakes as brakes_module
 from .physics import couplers, kernel
 from .physics.brakes import adhesion as adhesion_module
-from .physics.brakes import friction
+from .physics.brakes import friction, thermal
 from .physics.brakes.base import EMERGENCY, OVERCHARGE, SERVICE
 from .physics.constants import KMH_PER_MS, STANDSTILL_M_S
 from .physics.equations import (centre_offsets_m, curve_resistance_N_per_kN,
@@ -121,8 +120,8 @@ class Event:
     kind : str
         ``brake_applied``, ``brake_released``, ``stopped``, ``coupler_out_of_lut`` or
         ``limit_exceeded`` (a coupler or vehicle first beyond a limit of
-        :mod:`~ltd_brake_ros.verdicts`: ``criterion``, ``coupler`` or ``vehicle``, the force or
-        demand, the limit, ``speed_kmh``).
+        :mod:`~ltd_brake_ros.verdicts`: ``criterion``, ``coupler`` or ``vehicle``, the force,
+        demand or temperature, the limit, ``speed_kmh``).
     detail : dict
         Kind-specific values (units in the keys).
     """
@@ -143,9 +142,14 @@ class Event:
                     "there are extrapolated with the end slopes")
         if self.kind == "limit_exceeded":
             element = "coupler" if "coupler" in d else "vehicle"
-            what = (f"{_distinct(d['force_kN'], d['limit_kN'], 0)} kN, limit "
-                    f"{d['limit_kN']:.0f} kN" if "force_kN" in d else
-                    f"demand {_distinct(d['demand'], d['limit'], 3)}, limit {d['limit']:.3f}")
+            if "force_kN" in d:
+                what = (f"{_distinct(d['force_kN'], d['limit_kN'], 0)} kN, limit "
+                        f"{d['limit_kN']:.0f} kN")
+            elif "temperature_K" in d:
+                what = (f"{_distinct(d['temperature_K'], d['limit_K'], 0)} K, limit "
+                        f"{d['limit_K']:.0f} K")
+            else:
+                what = f"demand {_distinct(d['demand'], d['limit'], 3)}, limit {d['limit']:.3f}"
             return (f"t = {self.time_s:.2f} s: {element} {d[element]} beyond its "
                     f"{d['criterion'].replace('_', ' ')} limit ({what}) at "
                     f"{d['speed_kmh']:.1f} km/h")
@@ -177,8 +181,10 @@ class Snapshot:
     stopped : bool
         Every vehicle is at standstill (slower than the simulator's ``standstill_m_s``).
     extras : dict
-        Further per-vehicle quantities of the brake model (units in the keys); empty for the
-        shipped models.
+        Further per-vehicle quantities (units in the keys): the brake model's (the brake-pipe
+        model's pressures) and the temperature of each vehicle's brake blocks and wheels,
+        ``block_temperature_K`` and ``wheel_temperature_K`` (:mod:`.physics.brakes.thermal`;
+        NaN for vehicles without block brakes).
     """
 
     time_s: float
@@ -419,8 +425,10 @@ def kernels_cached() -> bool | None:
         machine); True: it loads them; None: numba does not say.
     """
     try:
-        return os.path.exists(kernel.run_loop._cache._cache_file._index_path)
-    except AttributeError:  # another numba, or the pure-Python fallback
+        # an index holding a compiled overload (the stale-cache check at import may leave an
+        # empty index behind: that is not a compiled kernel)
+        return bool(kernel.run_loop._cache._cache_file._load_index())
+    except (AttributeError, OSError, EOFError, ValueError):  # another numba, or no numba
         return None
 
 
@@ -566,7 +574,8 @@ class Simulator:
         self.fext_N = np.zeros(self.n)
         self.limits: TrainLimits = compiled.limits
         # what the state at time 0 is built from, anew at each reset (as cheap as a copy)
-        self._initial = (self.n, self.speed_kmh / KMH_PER_MS, self.model.brakes, self.limits)
+        self._initial = (self.n, self.speed_kmh / KMH_PER_MS, self.model.brakes, self.limits,
+                         thermal.initial_temperatures(self.model.thermal))
         self._state = self._initial_state()
         self._workspace: tuple | None = None  # (kinematics, brake state, the kernel's workspace)
         self._inputs: kernel.Inputs | None = None  # the last chunk's
@@ -608,7 +617,8 @@ class Simulator:
         except couplers.CompileError as exc:
             raise InputError(getattr(coupler, "source", "") or "coupler", exc.field,
                              exc.reason) from None
-        return kernel.TrainModel(train, fr, ba, coupler_arrays, tr_arrays, tk)
+        return kernel.TrainModel(train, fr, ba, coupler_arrays, tr_arrays, tk,
+                                 thermal.compile(consist, params.thermal))
 
     # ------------------------------------------------------------------ state
 
@@ -624,9 +634,9 @@ class Simulator:
 
     def _initial_state(self) -> SimulatorState:
         """A new state at time 0: the initial speed, brakes released, nothing counted."""
-        n, v0_m_s, brakes, limits = self._initial
+        n, v0_m_s, brakes, limits, temperature_K = self._initial
         return SimulatorState(
-            0.0, 0.0, kernel.KinematicState.initial(n, v0_m_s),
+            0.0, 0.0, kernel.KinematicState.initial(n, v0_m_s, temperature_K),
             self._brake_model.initial_state(brakes), brakes_module.CommandEvents.empty(),
             kernel.new_stats(), np.zeros(max(n - 1, 1), bool),
             watch=Watch(limits, self.standstill_m_s))
@@ -786,7 +796,9 @@ class Simulator:
         -------
         Verdicts
         """
-        return self._state.watch.verdicts(self._state.kinematics, limits)
+        peaks = self._temperature_peaks()
+        return self._state.watch.verdicts(self._state.kinematics, limits,
+                                          wheel_temperature=(peaks[2], peaks[3]))
 
     def adhesion_records(self) -> VehicleDemand:
         """Each vehicle's adhesion records since the last reset: mean utilised adhesion over
@@ -812,6 +824,49 @@ class Simulator:
         return [{"vehicle": int(i), "first_s": float(k.slide_first_s[i]),
                  "duration_s": float(k.slide_time_s[i])}
                 for i in np.flatnonzero(k.slide_first_s[: self.n] >= 0.0)]
+
+    def temperatures(self) -> tuple[np.ndarray, np.ndarray]:
+        """Temperature of each vehicle's brake blocks and of its wheels now
+        (:mod:`.physics.brakes.thermal`).
+
+        Returns
+        -------
+        block_K, wheel_K : ndarray
+            [K]; NaN for vehicles without block brakes.
+        """
+        k = self._state.kinematics  # the kernel brings them to the end of each call
+        return k.block_temperature_K.copy(), k.wheel_temperature_K.copy()
+
+    @property
+    def brake_energy_J(self) -> np.ndarray:
+        """Work of each vehicle's friction brake since the last reset, retarding force times
+        distance: the heat its blocks and wheels (or discs) took [J]."""
+        k = self._state.kinematics
+        return k.brake_energy_J + k.heat_work_J
+
+    def _temperature_peaks(self) -> tuple:
+        """Per-vehicle peaks of block and wheel temperature [K] and their times [s]: the
+        updates' and now."""
+        k, t = self._state.kinematics, self._state.time_s
+        out = []
+        for now, peak, when in ((k.block_temperature_K, k.peak_block_temperature_K,
+                                 k.peak_block_temperature_time_s),
+                                (k.wheel_temperature_K, k.peak_wheel_temperature_K,
+                                 k.peak_wheel_temperature_time_s)):
+            hotter = now > peak
+            out += [np.where(hotter, now, peak), np.where(hotter, t, when)]
+        return tuple(out)
+
+    def brake_temperatures(self) -> thermal.Peaks:
+        """The hottest brake blocks and wheels since the last reset, which vehicle and when.
+
+        Returns
+        -------
+        Peaks
+            :class:`~ltd_brake_ros.physics.brakes.thermal.Peaks`.
+        """
+        return thermal.Peaks.from_arrays(*self._temperature_peaks(),
+                                         self.model.thermal.ambient_K)
 
     def braked_weight_percent(self) -> float:
         """Train braked-weight percentage lambda_train, Eq. 11 [%]."""
@@ -852,9 +907,17 @@ class Simulator:
             brake_force_N=k.brake_force_N.copy() if self._brakes else np.zeros(n),
             traction_force_N=k.traction_force_N.copy(), block_force_N=st.brakes.force_N.copy(),
             coupler_force_N=k.coupler_force_N[: n - 1].copy(), events=tuple(events),
-            stopped=self.stopped,
-            extras=self._brake_model.snapshot_extras(self.model.brakes, st.brakes))
+            stopped=self.stopped, extras=self._extras())
         return snap
+
+    def _extras(self) -> dict:
+        """The snapshot's further quantities: the brake model's and the temperatures."""
+        st = self._state
+        extras = self._brake_model.snapshot_extras(self.model.brakes, st.brakes)
+        k = st.kinematics
+        extras["block_temperature_K"] = k.block_temperature_K.copy()
+        extras["wheel_temperature_K"] = k.wheel_temperature_K.copy()
+        return extras
 
     # ------------------------------------------------------------------ integration
 

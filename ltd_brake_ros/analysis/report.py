@@ -295,6 +295,13 @@ class RunReport:
     notes: list = field(default_factory=list)
 
     @property
+    def warnings(self) -> list[str]:
+        """Where the recorded run left its models' validated ranges (from its run
+        information)."""
+        found = self.metadata.get("warnings")
+        return [str(w) for w in found] if isinstance(found, list) else []
+
+    @property
     def has_brake_pipe(self) -> bool:
         """A brake pipe was recorded (its profiles and cylinder pressures are here)."""
         return bool(self.pipe_profile_Pa.size)
@@ -323,6 +330,7 @@ class RunReport:
                 "tail_fill_time_s", "head_wagon_index")}
         out["sign_convention"] = _SIGN
         out["plots"] = [str(p) for p in self.plots]
+        out["warnings"] = self.warnings
         out["time_base"] = "state header stamps" if self.stamped else "log times"
         out["notes"] = list(self.notes)
         return out
@@ -378,6 +386,7 @@ class RunReport:
             lines += [f"  {line}" for line in self.verdicts.describe()]
         for p in self.plots:
             lines.append(f"Plot: {p}")
+        lines += [f"Warning: {w}" for w in self.warnings]
         lines += [f"Note: {note}" for note in self.notes]
         return "\n".join(lines)
 

@@ -6,6 +6,13 @@ import argparse
 from .options import CONVENTIONS, add_run_spec_options, json_by_key, run_spec
 
 
+def model_warnings(sim) -> list[str]:
+    """Where the run leaves its models' validated ranges (imported when a run needs it)."""
+    from ..recording.metadata import model_warnings as warnings_of
+
+    return warnings_of(sim)
+
+
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Add the ``simulate`` verb to ``ltd-brake`` (the verb contract: :mod:`ltd_brake_ros.cli`)."""
     p = subparsers.add_parser(
@@ -13,7 +20,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         description="Apply the emergency brake at t = 0 and integrate until the train stands "
                     "still. Prints lambda_train (Eq. 11), the speed at the brake command, the "
                     "stopping distance and time from it, the peak draft and buff forces with "
-                    "their coupler numbers, the strength and adhesion verdicts and the cost.",
+                    "their coupler numbers, the hottest brake blocks and wheels, the strength, "
+                    "adhesion and temperature verdicts and the cost.",
         epilog=CONVENTIONS + "\nexamples:\n  ltd-brake simulate --scenario 6\n"
                "  ltd-brake simulate --consist my_train.yaml --speed-kmh 80 --json\n"
                "  ltd-brake simulate --scenario 6 --params brake_params/uic_brake_pipe.yaml "
@@ -188,6 +196,8 @@ def run(args: argparse.Namespace) -> int:
         out["startup_s"] = startup_s
         out["adhesion"] = sim.adhesion.name
         out["wheel_slides"] = sim.wheel_slides()
+        out["warnings"] = model_warnings(sim)
+        out.update(sim.brake_temperatures().as_dict())
         print(json_by_key(out))
         return 0
     print(f"train            {res.consist}: {res.vehicles} vehicles, {res.train_length_m:.1f} m, "
@@ -205,7 +215,10 @@ def run(args: argparse.Namespace) -> int:
           f"(t = {res.peak_buff_time_s:.2f} s)")
     if res.out_of_range.count:
         print(f"warning          {res.out_of_range.describe()}")
+    for line in model_warnings(sim):
+        print(f"warning          {line}")
     _print_slides(sim)
+    _print_heat(sim)
     _print_verdicts(verdicts)
     print(f"start-up         {startup_s:.2f} s (compiling or loading the simulation kernels, "
           "once per process)")
@@ -262,6 +275,8 @@ def _run_script(args: argparse.Namespace, spec) -> int:
         "wall_time_s": wall, "real_time_factor": sim.time_s / wall if wall > 0 else None,
         "verdicts": sim.verdicts().as_dict(),
         "adhesion": sim.adhesion.name, "wheel_slides": sim.wheel_slides(),
+        "warnings": model_warnings(sim),
+        **sim.brake_temperatures().as_dict(),
     }
     if args.json:
         print(json_by_key(out))
@@ -280,9 +295,12 @@ def _run_script(args: argparse.Namespace, spec) -> int:
     beyond = sim.coupler_excursions()
     if beyond.count:
         print(f"warning          {beyond.describe()}")
+    for line in model_warnings(sim):
+        print(f"warning          {line}")
     print(f"peak draft       {out['peak_draft_kN']:.1f} kN at coupler {peaks.draft_coupler}")
     print(f"peak buff        {out['peak_buff_kN']:.1f} kN at coupler {peaks.buff_coupler}")
     _print_slides(sim)
+    _print_heat(sim)
     _print_verdicts(sim.verdicts())
     print(f"cost             {wall * 1e3:.0f} ms wall, {out['real_time_factor']:.0f}x real time")
     return 0
@@ -305,6 +323,12 @@ def _print_slides(sim) -> None:
     worst = max(slides, key=lambda s: s["duration_s"])
     print(text + f"{len(slides)} vehicles slid, longest vehicle {worst['vehicle']} for "
           f"{worst['duration_s']:.2f} s from t = {worst['first_s']:.2f} s")
+
+
+def _print_heat(sim) -> None:
+    """One line on the hottest brake blocks and wheels (mean temperatures of the lumped
+    model, :mod:`~ltd_brake_ros.physics.brakes.thermal`)."""
+    print(f"brake heat       {sim.brake_temperatures().describe()}")
 
 
 def _print_verdicts(verdicts) -> None:

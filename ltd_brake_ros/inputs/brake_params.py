@@ -18,7 +18,8 @@ def brake_params_from_mapping(data: Any, source: str) -> BrakeParams:
     ----------
     data : mapping
         ``model`` (a registered brake model, default ``uic_empirical``) and the fields of that
-        model's and the friction law's ``Params``; missing fields take their defaults.
+        model's, the friction law's and the brake-heat model's ``Params``; missing fields take
+        their defaults.
     source : str
         Where the values came from, for error messages.
 
@@ -30,13 +31,14 @@ def brake_params_from_mapping(data: Any, source: str) -> BrakeParams:
     name = f.string("model", brakes.DEFAULT_MODEL, choices=tuple(brakes.MODELS))
     model = brakes.MODELS[name]
     f.reject_unknown(file_keys(model.Params) | file_keys(brakes.friction.Params)
-                     | {"model", "name", "description"})
+                     | file_keys(brakes.thermal.Params) | {"model", "name", "description"})
     pneumatic = params_from_fields(model.Params, f)
     try:
         brakes.check_fields(pneumatic)
     except brakes.CompileError as exc:
         raise f.error(exc.field, exc.reason) from None
-    return BrakeParams(pneumatic, params_from_fields(brakes.friction.Params, f), str(source))
+    return BrakeParams(pneumatic, params_from_fields(brakes.friction.Params, f), str(source),
+                       thermal=params_from_fields(brakes.thermal.Params, f))
 
 
 def load_brake_params(path: str | os.PathLike | None = None) -> BrakeParams:

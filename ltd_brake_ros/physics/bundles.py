@@ -10,7 +10,7 @@ import numpy as np
 
 from . import brakes
 from . import couplers
-from .brakes import friction
+from .brakes import friction, thermal
 
 
 #: Kernel return codes.
@@ -108,6 +108,7 @@ class TrainModel(NamedTuple):
     couplers: couplers.CouplerArrays
     traction: TractionArrays
     track: TrackArrays
+    thermal: thermal.ThermalArrays
 
 
 class Inputs(NamedTuple):
@@ -167,6 +168,20 @@ class KinematicState(NamedTuple):
         applied (retarding-force scale at least :data:`FULL_APPLICATION` of its full value) and
         it ran at :data:`MEAN_ADHESION_MIN_SPEED_M_S` or faster: their ratio over m g is the
         mean utilised adhesion of a braking calculation (:mod:`ltd_brake_ros.verdicts`).
+    block_temperature_K, wheel_temperature_K : ndarray
+        Temperature of each vehicle's brake blocks and wheels at the end of the kernel's last
+        call [K] (NaN: no block brakes), from ``block_updated_K`` and ``wheel_updated_K``,
+        the same at the last update of :mod:`.brakes.thermal`.
+    peak_block_temperature_K, peak_block_temperature_time_s : ndarray
+        Their largest value at an update [K] and when [s]; ``peak_wheel_temperature_K``,
+        ``peak_wheel_temperature_time_s`` the same of the wheels.
+    heat_work_J, heat_distance_m : ndarray
+        Work of each vehicle's brake (retarding force times distance) [J] and the distance it
+        ran [m] since the last update.
+    brake_energy_J : ndarray
+        Work of each vehicle's brake up to the last update [J].
+    heat_clock_s : ndarray, shape (2,)
+        Time of the last update and of the next grid time [s] (:func:`.brakes.thermal.advance`).
     step_control : ndarray, shape (3,)
         Entry :data:`NEXT_STEP`: the step the error control proposes next [s] (0: the nominal
         step); entry :data:`ACCEL_VALID`: 1 once ``accel_m_s2`` holds a step's derivative;
@@ -201,17 +216,34 @@ class KinematicState(NamedTuple):
     peak_brake_slow_speed_m_s: np.ndarray
     slide_time_s: np.ndarray
     slide_first_s: np.ndarray
+    block_temperature_K: np.ndarray
+    wheel_temperature_K: np.ndarray
+    block_updated_K: np.ndarray
+    wheel_updated_K: np.ndarray
+    peak_block_temperature_K: np.ndarray
+    peak_block_temperature_time_s: np.ndarray
+    peak_wheel_temperature_K: np.ndarray
+    peak_wheel_temperature_time_s: np.ndarray
+    heat_work_J: np.ndarray
+    heat_distance_m: np.ndarray
+    brake_energy_J: np.ndarray
+    heat_clock_s: np.ndarray
 
     @classmethod
-    def initial(cls, n: int, speed_m_s: float) -> "KinematicState":
-        """Every vehicle at ``speed_m_s`` [m/s], couplers unloaded, nothing recorded yet."""
+    def initial(cls, n: int, speed_m_s: float,
+                temperature_K: np.ndarray | None = None) -> "KinematicState":
+        """Every vehicle at ``speed_m_s`` [m/s], couplers unloaded, nothing recorded yet;
+        blocks and wheels at ``temperature_K`` (per vehicle [K]; default NaN: none)."""
         nc = max(n - 1, 1)
         v = np.full(n, speed_m_s)
+        temp = np.full(n, np.nan) if temperature_K is None else np.array(temperature_K, float)
         return cls(np.zeros(n), v, np.zeros(n), np.full(n, speed_m_s), v == 0.0, np.zeros(n),
                    np.zeros(nc), np.zeros(n), np.zeros(nc), np.zeros(nc), np.zeros(nc),
                    np.zeros(nc), np.zeros(nc), np.full(nc, -1.0), np.full(nc, -1.0),
                    np.zeros(n), np.zeros(3), np.zeros(n), np.zeros(n),
-                   *(np.zeros(n) for _ in range(6)), np.zeros(n), np.full(n, -1.0))
+                   *(np.zeros(n) for _ in range(6)), np.zeros(n), np.full(n, -1.0),
+                   temp, temp.copy(), temp.copy(), temp.copy(), temp.copy(), np.zeros(n),
+                   temp.copy(), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(2))
 
     def copy(self) -> "KinematicState":
         """An independent copy."""

@@ -33,7 +33,8 @@ with these safeguards:
   a failure code and the caller raises.
 
 The brake model advances the block forces exactly over each step (:mod:`.brakes`); the friction
-law turns them into retarding forces.
+law turns them into retarding forces, whose work heats the blocks and wheels
+(:mod:`.brakes.thermal`, advanced on its own grid of simulated time).
 
 Everything is passed in named bundles (typing.NamedTuple of arrays and scalars, which numba
 compiles like structs): :class:`TrainModel` (compiled once), :class:`Inputs` (per chunk),
@@ -47,7 +48,7 @@ import math
 import numpy as np
 
 from . import brakes
-from .brakes import adhesion, friction
+from .brakes import adhesion, friction, thermal
 from .equations import HAVE_NUMBA, jit, jit_step, lut_segment, resistance_coefficients
 from .bundles import (ACCEL_VALID, ADHESION_SPLIT_SPEED_M_S, CURVE, DEFAULT_NEWTON_RTOL,
                       DEFAULT_TOLERANCE_M_S, FULL_APPLICATION, GRADIENT, Inputs, KinematicState,
@@ -309,6 +310,8 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
                                      state.peak_brake_slow_speed_m_s)
     adh, weight = fr_arrays.adhesion, fr_arrays.weight_N
     slide_on = adh.shape[1] > 0
+    heat_work, heat_dist = state.heat_work_J, state.heat_distance_m
+    heat_clock = state.heat_clock_s
     slide_t, slide_first = state.slide_time_s, state.slide_first_s
     xlo = cp.valid_lo_m
     xhi = cp.valid_hi_m
@@ -423,6 +426,10 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
                 x[i] = xhat[i] + bh * u[i]
                 v[i] = u[i]
                 fbrake[i] = fair[i]
+                # the brake's work heats its blocks and wheels (brakes.thermal)
+                ran = abs(x[i] - xp[i])
+                heat_work[i] += fair[i] * ran
+                heat_dist[i] += ran
                 if slide_on and u[i] > v_stick and fair[i] > 0.0:
                     mu, _dmu = adhesion.mu_of(adh, u[i])
                     if fair[i] >= mu * weight[i] * (1.0 - 1e-12):  # capped: sliding
@@ -454,6 +461,8 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
                                 t_draft, peak_buff, t_buff, lut_out, t_lut_out, t_lut_max,
                                 control, OUT_OF_RANGE)
             control[ACCEL_VALID] = 1.0
+            if tc >= heat_clock[1]:  # a grid time of the temperatures reached
+                thermal.advance(model.thermal, state, fb, tc)
             hp = 0.0 if kink else hs
             if last:
                 break
@@ -465,7 +474,12 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
                     all_stopped = False
                     break
             if all_stopped:
+                thermal.current(model.thermal, state, fb, t, state.block_temperature_K,
+                                state.wheel_temperature_K)
                 return STOPPED, t, hp, _step + 1
+    # the temperatures now, for the caller's snapshot
+    thermal.current(model.thermal, state, fb, t, state.block_temperature_K,
+                    state.wheel_temperature_K)
     return OK, t, hp, nsteps
 
 

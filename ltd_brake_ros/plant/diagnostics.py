@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..physics.constants import KMH_PER_MS
+from ..recording.metadata import model_warnings
 from ..simulator import Commands, Simulator
 from ..verdicts import diagnostic_values
 
@@ -208,6 +209,10 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
     if verdicts.status != "PASS" and level == OK:
         beyond = [c.name for c in verdicts.criteria if c.status in ("FAIL", "WARN")]
         level, message = WARN, f"{message}; limits exceeded: {', '.join(beyond)}"
+    outside = model_warnings(sim)
+    values["model_validity"] = outside[0] if outside else "inside the validated ranges"
+    if outside and level == OK:
+        level, message = WARN, f"{message}; outside a model's validated range"
     if recording_error:
         values["recording_error"] = recording_error
         if level == OK:

@@ -9,7 +9,7 @@ from typing import Any, Callable
 
 from ..inputs import InputError
 from ..physics.kernel import DEFAULT_TOLERANCE_M_S
-from ..recording.metadata import run_metadata
+from ..recording.metadata import model_warnings, run_metadata
 from ..recording.plant_topics import extra_topic
 from ..run_spec import RunSpec, RunSpecError, resolve_run_spec
 from ..simulator import SimulationError, Simulator
@@ -268,4 +268,6 @@ def reset_run(runner, run: PlantRun, values: dict[str, Any],
     if not ok:
         return False, text, run
     log.info(f"new run: {new.describe()}")
+    for line in model_warnings(new.sim):
+        log.warning(line)
     return True, f"{text}; new run: {new.describe()}", new

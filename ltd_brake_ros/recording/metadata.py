@@ -5,6 +5,22 @@ from .. import __version__
 from ..verdicts import limits_metadata
 
 
+def model_warnings(sim) -> list[str]:
+    """Where the run of ``sim`` leaves its models' validated ranges (empty: inside them).
+
+    Parameters
+    ----------
+    sim : Simulator
+
+    Returns
+    -------
+    list of str
+    """
+    from ..physics import brakes
+
+    return brakes.validity(sim.consist, sim.params)
+
+
 def run_metadata(sim, *, scenario=None, parameters: dict | None = None, **extra) -> dict:
     """Run information to store in a recording (``BagWriter(metadata=...)``).
 
@@ -42,6 +58,9 @@ def run_metadata(sim, *, scenario=None, parameters: dict | None = None, **extra)
         # strength and adhesion limits the run was judged by (kN, t): the report reads them back
         "limits": limits_metadata(sim.limits),
     }
+    warnings = model_warnings(sim)
+    if warnings:  # the run is outside a model's validated range
+        meta["warnings"] = warnings
     if scenario is not None:
         meta["scenario"] = scenario
     if parameters:

@@ -75,7 +75,7 @@ from ..plant.run import (RUN_INPUT_PARAMETERS, PlantRun, check_run_inputs,  # no
 from ..plant.runner import PlantRunner  # noqa: E402
 from ..simulator import kernels_cached  # noqa: E402
 from ..recording.bag import message_class, type_name  # noqa: E402
-from ..recording.metadata import train_description  # noqa: E402
+from ..recording.metadata import model_warnings, train_description  # noqa: E402
 from ..recording.plant_topics import (ARRAY_TOPICS, CLOCK_TOPIC, COMMAND_TOPICS,  # noqa: E402
                                       DESCRIPTION_TOPIC, STATE_TOPICS, StateEncoder)
 from ..recording.qos import qos_profiles_yaml  # noqa: E402
@@ -198,6 +198,8 @@ class SimNode(Node):
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         log.info(self.plant_run.start_line(self.runner.settings, self.clock_mode))
+        for line in model_warnings(self.plant_run.sim):
+            log.warning(line)
 
     @property
     def simulator(self) -> Simulator:

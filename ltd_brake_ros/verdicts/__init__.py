@@ -1,4 +1,5 @@
-"""Verdicts on a run: coupler strength and travel, endurable compressive force, adhesion.
+"""Verdicts on a run: coupler strength and travel, endurable compressive force, adhesion,
+wheel temperature.
 
 One table, one row per criterion. Each criterion states what it assesses, over which part of
 the run (its scope) and by what source; its status is PASS, its severity when a limit is
@@ -28,6 +29,9 @@ beyond its limit (by how much, when, at what speed):
                                     noted where it exceeds a wet rail's adhesion)
 ``standstill_holding``  FAIL        after the stop, the force each vehicle must hold (coupler
                                     forces, grade) against what its brake holds at rest
+``wheel_temperature``   WARN        each tread-braked vehicle's peak mean wheel temperature
+                                    (:mod:`~.physics.brakes.thermal`) against 350 C, a
+                                    conservative value (no limit verified)
 ======================  ==========  ======================================================
 
 Adhesion demand is the air brake's retarding force over the vehicle's weight, m g; its mean
@@ -50,8 +54,9 @@ from __future__ import annotations
 
 from .rules import (ADHESION_AT_SPEED_LIMIT, ADHESION_LIMIT, ADHESION_LIMIT_WSP,
                     ADHESION_SPEED_KMH, BUFF_STRENGTH_N, CRITERIA, DRAFT_STRENGTH_N,
-                    MEAN_ADHESION_MIN_INITIAL_KMH, Rule, TrainLimits, default_coupler_limits,
-                    limits_from_metadata, limits_metadata, train_limits, wet_rail_adhesion)
+                    MEAN_ADHESION_MIN_INITIAL_KMH, WHEEL_TEMPERATURE_LIMIT_K, Rule, TrainLimits,
+                    default_coupler_limits, limits_from_metadata, limits_metadata, train_limits,
+                    wet_rail_adhesion)
 from .table import (FLAG_NAMES, Criterion, Exceedance, VehicleDemand, Verdicts,
                     diagnostic_values, flags, judge)
 from .watch import SampledDemand, Watch
@@ -59,6 +64,7 @@ from .watch import SampledDemand, Watch
 __all__ = ["ADHESION_AT_SPEED_LIMIT", "ADHESION_LIMIT", "ADHESION_LIMIT_WSP",
            "ADHESION_SPEED_KMH", "BUFF_STRENGTH_N", "CRITERIA", "DRAFT_STRENGTH_N",
            "FLAG_NAMES", "MEAN_ADHESION_MIN_INITIAL_KMH", "Criterion", "Exceedance", "Rule",
-           "SampledDemand", "TrainLimits", "VehicleDemand", "Verdicts", "Watch",
-           "default_coupler_limits", "diagnostic_values", "flags", "judge",
-           "limits_from_metadata", "limits_metadata", "train_limits", "wet_rail_adhesion"]
+           "SampledDemand", "TrainLimits", "VehicleDemand", "Verdicts",
+           "WHEEL_TEMPERATURE_LIMIT_K", "Watch", "default_coupler_limits", "diagnostic_values",
+           "flags", "judge", "limits_from_metadata", "limits_metadata", "train_limits",
+           "wet_rail_adhesion"]

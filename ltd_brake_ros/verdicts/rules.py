@@ -12,8 +12,9 @@ from ..physics.constants import G
 __all__ = ["ADHESION_AT_SPEED_LIMIT", "ADHESION_LIMIT", "ADHESION_LIMIT_WSP",
            "ADHESION_SPEED_KMH", "BUFF_STRENGTH_N", "CRITERIA", "DRAFT_STRENGTH_N",
            "MEAN_ADHESION_MIN_DISTANCE_M", "MEAN_ADHESION_MIN_INITIAL_KMH",
-           "STANDSTILL_SAMPLE_M_S", "Rule", "TrainLimits", "default_coupler_limits",
-           "limits_from_metadata", "limits_metadata", "train_limits", "wet_rail_adhesion"]
+           "STANDSTILL_SAMPLE_M_S", "Rule", "TrainLimits", "WHEEL_TEMPERATURE_LIMIT_K",
+           "default_coupler_limits", "limits_from_metadata", "limits_metadata", "train_limits",
+           "wet_rail_adhesion"]
 
 #: Default draft strength of a coupling [N]: the minimum breaking load of the standard screw
 #: coupling, 850 kN (UIC 520/826 as summarised by secondary sources; not verified in the
@@ -52,6 +53,16 @@ MEAN_ADHESION_MIN_DISTANCE_M = 1.0
 STANDSTILL_SAMPLE_M_S = 1e-3
 #: Wet-rail adhesion as a fraction of dry (Koffman 1948, secondary source: ~0.6).
 WET_RAIL_FACTOR = 0.6
+#: Wheel temperature (the lumped model's mean wheel temperature) that earns a warning on a
+#: tread-braked vehicle [K]: 350 C. No limit could be verified: EN 13979-1's thermomechanical
+#: assessment is about deformation and fracture under braking (its summary), no temperature
+#: limit retrieved from it, and the literature found (Johnson et al. 1977, Donzella et al.
+#: 1998, RTRI 2024, Megna & Bracciali 2025) reports tensile rim stresses after severe drag
+#: braking without a number retrieved here. A conservative value chosen (low): 50 K above the
+#: 299 C this model computes for the freight-wagon TSI's thermal reference case (45 kW per
+#: wheel for 34 min, which the wheels are designed to withstand); a braking clearly beyond it
+#: warns.
+WHEEL_TEMPERATURE_LIMIT_K = 623.15
 
 
 def wet_rail_adhesion(speed_kmh):
@@ -120,6 +131,8 @@ CRITERIA = {
                                f"braked vehicles below {ADHESION_SPEED_KMH:.0f} km/h, moving"),
     "standstill_holding": Rule("Holding at rest", "force to hold (couplers, grade)", "vehicle",
                                "kN", "FAIL", "every vehicle after the train has stopped"),
+    "wheel_temperature": Rule("Wheel temperature", "mean wheel temperature", "vehicle", "K",
+                              "WARN", "vehicles with block brakes, all speeds"),
 }
 _DEFAULT_ORIGIN = {
     "draft_strength": "default 850 kN: screw coupling breaking load (UIC 520/826 via secondary "
@@ -140,6 +153,11 @@ _DEFAULT_ORIGIN = {
                           "with the brake applied 0.30 m g at full application (dry-rail "
                           "adhesion at rest, secondary sources; the clamped brake assumed to "
                           "hold the wheel)",
+    "wheel_temperature": "default 623 K (350 C): a conservative value chosen, no limit "
+                         "verified (none retrieved from EN 13979-1's thermomechanical "
+                         "assessment); 50 K above this model's 572 K for the freight-wagon "
+                         "TSI's thermal reference case (45 kW per wheel for 34 min); lumped "
+                         "model, the tread and rim are hotter, rail chill not modelled",
 }
 
 
@@ -171,6 +189,9 @@ class TrainLimits:
         Per vehicle, (rho - 1) M [kg].
     travel_mm : tuple of float
         The coupler model's valid deflections, (buff end, draft end) [mm] (inf: unbounded).
+    wheel_temperature_K : ndarray
+        Per vehicle, the wheel temperature that earns a warning [K]; inf where not assessed
+        (no block brakes; empty: none assessed).
     """
 
     draft_strength_N: np.ndarray
@@ -184,6 +205,7 @@ class TrainLimits:
     full_scale_N: np.ndarray = field(default_factory=lambda: np.zeros(0))
     rotating_mass_kg: np.ndarray = field(default_factory=lambda: np.zeros(0))
     travel_mm: tuple = (-math.inf, math.inf)
+    wheel_temperature_K: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def of(self, criterion: str) -> np.ndarray:
         """The per-coupler or per-vehicle limits of a criterion."""
@@ -193,7 +215,10 @@ class TrainLimits:
                 "coupler_travel": np.zeros(self.draft_strength_N.size),
                 "adhesion_at_speed": np.full(n, ADHESION_AT_SPEED_LIMIT),
                 "adhesion_low_speed": np.full(n, math.inf),
-                "standstill_holding": np.full(n, math.inf)}[criterion]
+                "standstill_holding": np.full(n, math.inf),
+                "wheel_temperature": (self.wheel_temperature_K
+                                      if self.wheel_temperature_K.size == n
+                                      else np.full(n, math.inf))}[criterion]
 
 
 def _coupler_limit(per_vehicle: list, model_value: float, default: float):
@@ -284,7 +309,8 @@ def train_limits(consist, coupler_params=None, *, adhesion_limit: float | None =
                            "campaign file" + ("; consist limits" if "consist" in o_adh else "")),
               "adhesion_at_speed": _DEFAULT_ORIGIN["adhesion_at_speed"],
               "adhesion_low_speed": _DEFAULT_ORIGIN["adhesion_low_speed"],
-              "standstill_holding": _DEFAULT_ORIGIN["standstill_holding"]}
+              "standstill_holding": _DEFAULT_ORIGIN["standstill_holding"],
+              "wheel_temperature": _DEFAULT_ORIGIN["wheel_temperature"]}
     vs = consist.vehicles
     weight = np.array([v.mass_kg for v in vs], float) * G
     braked = np.array([getattr(v.brake, "type", "none") in ("blocks", "disc") for v in vs])
@@ -292,8 +318,9 @@ def train_limits(consist, coupler_params=None, *, adhesion_limit: float | None =
     full = (np.asarray(friction_arrays.full_scale_N, float).copy() if friction_arrays is not None
             else np.zeros(len(vs)))
     rot = np.array([(v.inertia_factor - 1.0) * v.mass_kg for v in vs], float)
+    wheel = np.where(blocks, WHEEL_TEMPERATURE_LIMIT_K, math.inf)
     return TrainLimits(draft, buff, lcf, adhesion, weight, origin, braked, blocks, full, rot,
-                       travel)
+                       travel, wheel)
 
 
 def limits_metadata(limits: TrainLimits) -> dict:
@@ -407,4 +434,5 @@ def default_coupler_limits(n_vehicles: int) -> TrainLimits:
                         "endurable_lcf": _DEFAULT_ORIGIN["endurable_lcf"],
                         "coupler_travel": "not assessed: the recording holds no coupler travel",
                         "adhesion": none, "adhesion_at_speed": none,
-                        "adhesion_low_speed": none, "standstill_holding": none})
+                        "adhesion_low_speed": none, "standstill_holding": none,
+                        "wheel_temperature": none})

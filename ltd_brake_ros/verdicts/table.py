@@ -19,9 +19,15 @@ def _amount(unit: str, value: float, limit: float) -> str:
                 f"(+{(value - limit) / 1e3:.0f} kN, +{100.0 * (value - limit) / limit:.0f} %)")
     if unit == "mm":
         return f"{value:.1f} mm"
+    if unit == "K":
+        return f"{value:.0f} K > {limit:.0f} K (+{value - limit:.0f} K)"
     if not math.isfinite(limit):
         return f"{value:.3f}"
     return f"{value:.3f} > {limit:.3f} (+{value - limit:.3f})"
+
+
+#: JSON scale and key suffix of each criterion unit (``-``: none).
+_UNITS = {"kN": (1e-3, "_kN"), "mm": (1.0, "_mm"), "K": (1.0, "_K")}
 
 
 @dataclass(frozen=True)
@@ -36,7 +42,7 @@ class Exceedance:
         ``coupler`` (numbered from 1 behind the head) or ``vehicle`` (from 0 at the head).
     number : int
     value : float
-        Its worst force magnitude [N], excursion [mm] or adhesion demand [-].
+        Its worst force magnitude [N], excursion [mm], adhesion demand [-] or temperature [K].
     limit : float
         Its limit, same unit.
     time_s : float
@@ -73,7 +79,7 @@ class Exceedance:
     def as_dict(self) -> dict:
         """JSON-serialisable, units in the keys."""
         unit = CRITERIA[self.criterion].unit
-        scale, suffix = {"kN": (1e-3, "_kN"), "mm": (1.0, "_mm")}.get(unit, (1.0, ""))
+        scale, suffix = _UNITS.get(unit, (1.0, ""))
         return {"criterion": self.criterion, self.element: self.number,
                 f"value{suffix}": self.value * scale, f"limit{suffix}": self.limit * scale,
                 f"excess{suffix}": self.excess * scale, "time_s": self.time_s,
@@ -141,7 +147,8 @@ class Criterion:
 
     def _limit_text(self) -> str:
         unit = self.rule.unit
-        f = (lambda x: f"{x / 1e3:.0f} kN") if unit == "kN" else (lambda x: f"{x:.3g}")
+        f = ((lambda x: f"{x / 1e3:.0f} kN") if unit == "kN" else
+             (lambda x: f"{x:.0f} K") if unit == "K" else (lambda x: f"{x:.3g}"))
         if unit == "mm":
             return "the travel"
         if self.limit_min == self.limit_max:
@@ -156,7 +163,9 @@ class Criterion:
             return [f"{self.status:<4}  {rule.title}: {self.origin}"]
         unit = rule.unit
         worst = (f"{self.worst_value / 1e3:.0f} kN" if unit == "kN" else
-                 f"{self.worst_value:.1f} mm" if unit == "mm" else f"{self.worst_value:.3f}")
+                 f"{self.worst_value:.1f} mm" if unit == "mm" else
+                 f"{self.worst_value:.0f} K ({self.worst_value - 273.15:.0f} C)" if unit == "K"
+                 else f"{self.worst_value:.3f}")
         limit = "" if rule.severity == "INFO" else f"limit {self._limit_text()}; "
         if unit == "mm" and not self.exceedances:
             lines = [f"{self.status:<4}  {rule.title} ({rule.scope}): no coupler went beyond its "
@@ -177,7 +186,7 @@ class Criterion:
     def as_dict(self) -> dict:
         """JSON-serialisable, units in the keys."""
         rule = self.rule
-        scale, unit = {"kN": (1e-3, "_kN"), "mm": (1.0, "_mm")}.get(rule.unit, (1.0, ""))
+        scale, unit = _UNITS.get(rule.unit, (1.0, ""))
 
         def num(x):
             return x * scale if math.isfinite(x) else None
@@ -300,7 +309,7 @@ def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_k
           peak_buff_N, peak_buff_time_s, buff_speed_kmh, demand: VehicleDemand | None = None,
           travel_beyond_mm=None, travel_time_s=None, travel_speed_kmh=None,
           holding=None, holding_reason: str = "not assessed: the train has not stopped",
-          first_time_s: dict | None = None) -> Verdicts:
+          first_time_s: dict | None = None, wheel_temperature=None) -> Verdicts:
     """The verdicts table from a run's per-coupler peaks and per-vehicle adhesion records.
 
     Parameters
@@ -325,6 +334,9 @@ def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_k
     first_time_s : dict, optional
         Criterion -> per-element time each was first seen beyond its limit [s] (-1: never;
         default: the time of the worst).
+    wheel_temperature : tuple of array_like, optional
+        (peak wheel temperature [K], when [s]) of each vehicle, NaN where it has no block
+        brakes (omitted: not assessed).
 
     Returns
     -------
@@ -365,7 +377,26 @@ def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_k
         rows.append(_criterion("standstill_holding", need, cap, t, np.zeros(need.size),
                                first("standstill_holding", need.size), 0,
                                origin.get("standstill_holding", "")))
+    rows.append(_temperature_row(limits, wheel_temperature, first))
     return Verdicts(tuple(rows))
+
+
+def _temperature_row(limits: TrainLimits, wheel_temperature, first) -> Criterion:
+    """The wheel-temperature row: each tread-braked vehicle's peak against its limit."""
+    name = "wheel_temperature"
+    n = limits.adhesion_limit.size
+    if wheel_temperature is None or n == 0:
+        return Criterion(name, False, math.inf, math.inf,
+                         "not assessed: judged by the simulator only (a recording's report "
+                         "does not read the temperature topics)", 0.0, 0, 0.0)
+    peak, when = (np.asarray(a, float) for a in wheel_temperature)
+    lim = limits.of(name)
+    assessed = np.isfinite(peak) & np.isfinite(lim)
+    if peak.size != n or not assessed.any():
+        return Criterion(name, False, math.inf, math.inf,
+                         "not assessed: no vehicle with block brakes", 0.0, 0, 0.0)
+    return _criterion(name, peak, lim, when, np.full(n, math.nan), first(name, n), 0,
+                      limits.origin.get(name, ""), assessed=assessed)
 
 
 def _adhesion_rows(limits: TrainLimits, d: VehicleDemand | None, first) -> list[Criterion]:

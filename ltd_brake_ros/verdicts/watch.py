@@ -176,6 +176,10 @@ class Watch:
         self._mean_end_kmh = np.zeros(n)
         # at rest after the stop: each vehicle's worst force to hold against what it holds
         self._hold: tuple | None = None
+        # each vehicle's wheel-temperature limit, and its speed when first beyond it
+        self._wheel_limit_K = limits.of("wheel_temperature")
+        self._wheel_kmh = np.full(n, np.nan)
+        self._heat_update_s = -1.0  # the temperature peaks' last update seen
 
     def copy(self) -> "Watch":
         """An independent copy (the limits are shared: never mutated)."""
@@ -232,6 +236,17 @@ class Watch:
             if fast.any():
                 self._mean_end_t[fast] = t1
                 self._mean_end_kmh[fast] = np.abs(vehicle_speed_m_s[fast]) * KMH_PER_MS
+            # the wheels' temperature peaks, which change at its updates only (brakes.thermal,
+            # every second or so): first seen beyond the limit at the chunk's end
+            if kin.heat_clock_s[0] != self._heat_update_s:
+                self._heat_update_s = float(kin.heat_clock_s[0])
+                first_hot = first["wheel_temperature"]
+                hot = ((kin.peak_wheel_temperature_K[:n] > self._wheel_limit_K)
+                       & (first_hot < 0.0))
+                if hot.any():
+                    first_hot[hot] = t1
+                    self._wheel_kmh[hot] = np.abs(vehicle_speed_m_s[hot]) * KMH_PER_MS
+                    new += int(hot.sum())
         return self._events(kin) if new else []
 
     def at_rest(self, t: float, need_N, capacity_N) -> list[tuple]:
@@ -270,10 +285,13 @@ class Watch:
         out = []
         nc = self._draft_seen.size
         d = self.demand_of(kin)
+        n = d.at_speed.size
         values = {"draft_strength": kin.peak_draft_N[:nc], "buff_strength": -kin.peak_buff_N[:nc],
-                  "endurable_lcf": -kin.peak_buff_N[:nc], "adhesion_at_speed": d.at_speed}
+                  "endurable_lcf": -kin.peak_buff_N[:nc], "adhesion_at_speed": d.at_speed,
+                  "wheel_temperature": kin.peak_wheel_temperature_K[:n]}
         speeds = {"draft_strength": self.draft_speed_kmh, "buff_strength": self.buff_speed_kmh,
-                  "endurable_lcf": self.buff_speed_kmh, "adhesion_at_speed": d.at_speed_kmh}
+                  "endurable_lcf": self.buff_speed_kmh, "adhesion_at_speed": d.at_speed_kmh,
+                  "wheel_temperature": self._wheel_kmh}
         for name in values:
             first, done = self.first_time_s[name], self._reported[name]
             for j in np.flatnonzero((first >= 0.0) & ~done):
@@ -292,6 +310,9 @@ class Watch:
         if rule.unit == "kN":
             return {"criterion": name, rule.element: number, "force_kN": value / 1e3,
                     "limit_kN": limit / 1e3, "speed_kmh": speed_kmh}
+        if rule.unit == "K":
+            return {"criterion": name, rule.element: number, "temperature_K": value,
+                    "limit_K": limit, "speed_kmh": speed_kmh}
         return {"criterion": name, rule.element: number, "demand": value, "limit": limit,
                 "speed_kmh": speed_kmh}
 
@@ -313,16 +334,21 @@ class Watch:
                              kin.peak_brake_slow_time_s[:n].copy(),
                              kin.peak_brake_slow_speed_m_s[:n] * KMH_PER_MS)
 
-    def verdicts(self, kin, limits: TrainLimits | None = None) -> Verdicts:
+    def verdicts(self, kin, limits: TrainLimits | None = None,
+                 wheel_temperature=None) -> Verdicts:
         """The verdicts table so far.
 
         Parameters
         ----------
         kin : KinematicState
-            The kernel's state (running coupler peaks and excursions, brake work).
+            The kernel's state (running coupler peaks and excursions, brake work, the wheels'
+            temperature peaks).
         limits : TrainLimits, optional
             Other limits to judge the same run by (default: the watched ones); first times
             and coupler speeds are then known only where the watched limits were exceeded too.
+        wheel_temperature : tuple of ndarray, optional
+            Each vehicle's peak wheel temperature [K] and when [s] (default: the kernel's
+            peaks at its updates).
 
         Returns
         -------
@@ -333,6 +359,10 @@ class Watch:
         lim = limits or self.limits
         beyond = np.asarray(kin.beyond_range_m[:nc], float) * 1e3
         t_beyond = np.asarray(kin.beyond_range_time_s[:nc], float)
+        n = self.demand.at_speed.size
+        if wheel_temperature is None:
+            wheel_temperature = (kin.peak_wheel_temperature_K[:n],
+                                 kin.peak_wheel_temperature_time_s[:n])
         return judge(lim, peak_draft_N=kin.peak_draft_N[:nc],
                      peak_draft_time_s=kin.peak_draft_time_s[:nc],
                      draft_speed_kmh=self.draft_speed_kmh, peak_buff_N=kin.peak_buff_N[:nc],
@@ -341,6 +371,7 @@ class Watch:
                      demand=self.demand_of(kin) if lim.adhesion_limit.size else None,
                      travel_beyond_mm=beyond, travel_time_s=np.maximum(t_beyond, 0.0),
                      travel_speed_kmh=np.full(nc, math.nan), holding=self._hold,
+                     wheel_temperature=wheel_temperature,
                      first_time_s=None if other else dict(
                          self.first_time_s, coupler_travel=np.asarray(
                              kin.out_of_range_time_s[:nc], float)))

@@ -26,6 +26,8 @@ MANOEUVRES = """\
      duration_s: 12.0}
   - {kind: traction_start, demand: 0.8, duration_s: 6.0}
 """
+#: The snapshot extras every brake model's run records (physics/brakes/thermal.py).
+TEMPERATURES = ("block_temperature_K", "wheel_temperature_K")
 KPIS = ("stopping_distance_m", "peak_draft_kN", "peak_draft_coupler", "peak_buff_kN",
         "peak_buff_coupler")
 
@@ -76,7 +78,8 @@ def test_worst_runs_recorded_as_the_node_records_and_reported_alike(results, tmp
     worst = sorted(rows, key=lambda r: r["peak_buff_kN"])[:2]  # largest buff magnitude
     assert sorted(p.name for p in out.iterdir()) == sorted(
         run_folder_name(r["run_id"], "emergency") for r in worst)
-    declared = {t: (ty, parse_qos_profiles(q)) for t, ty, q in plant_topics()}
+    # the plant's topics and, with every brake model, the blocks' and wheels' temperature
+    declared = {t: (ty, parse_qos_profiles(q)) for t, ty, q in plant_topics(extras=TEMPERATURES)}
     for row in worst:
         folder = out / run_folder_name(row["run_id"], "emergency")
         info = bag_info(folder)
@@ -112,7 +115,8 @@ def test_scripted_manoeuvres_record_their_commands(results, tmp_path):
     commands = [(ns, data) for t, _, ns, data in read_bag(service) if t == "/train1/brake_demand"]
     # applied at t = 0 and released at the first command update (0.5 s) after 7.3 s
     assert commands == [(0, encode_float64(0.6)), (7_500_000_000, encode_float64(0.0))]
-    assert set(bag_info(service).topics) == {t for t, _, _ in plant_topics("/train1")}
+    assert set(bag_info(service).topics) == {t for t, _, _ in plant_topics("/train1",
+                                                                             TEMPERATURES)}
     traction = tmp_path / "traction"
     rerun(c, 4, "traction_start", traction)
     rep = analyse(traction)

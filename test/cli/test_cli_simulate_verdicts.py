@@ -26,7 +26,7 @@ def test_json_carries_the_verdicts_and_equals_the_emergency_stop(capsys):
     v = out["verdicts"]
     assert [c["criterion"] for c in v["criteria"]] == [
         "draft_strength", "buff_strength", "endurable_lcf", "coupler_travel", "adhesion",
-        "adhesion_at_speed", "adhesion_low_speed", "standstill_holding"]
+        "adhesion_at_speed", "adhesion_low_speed", "standstill_holding", "wheel_temperature"]
     draft = v["criteria"][0]
     assert draft["status"] == "PASS" and draft["worst_kN"] == pytest.approx(ref.peak_draft_kN)
     assert draft["worst_coupler"] == ref.peak_draft_coupler
@@ -37,6 +37,10 @@ def test_json_carries_the_verdicts_and_equals_the_emergency_stop(capsys):
     assert v["criteria"][6]["status"] == "INFO" and v["criteria"][6]["worst"] > 0.15
     assert v["passed"] and v["status"] == "PASS" and out["non_physical"] is False
     assert all(c["scope"] and c["origin"] for c in v["criteria"])
+    # one stop barely warms the wheels: far below the warning
+    hot = v["criteria"][8]
+    assert hot["status"] == "PASS" and hot["worst_K"] < 320.0
+    assert hot["worst_K"] == pytest.approx(out["peak_wheel_temperature_K"])
 
 
 def test_text_names_the_speed_at_the_command_and_the_verdicts(capsys):

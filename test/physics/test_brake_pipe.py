@@ -94,7 +94,8 @@ def test_simulator_shows_pipe_and_cylinder_pressures_and_stops_the_train():
     assert params.model == "uic_brake_pipe"
     sim = Simulator(bpv.train(10), 100.0, params)
     snap = sim.snapshot()
-    assert set(snap.extras) == {"brake_pipe_pressure_Pa", "brake_cylinder_pressure_Pa"}
+    assert set(snap.extras) == {"brake_pipe_pressure_Pa", "brake_cylinder_pressure_Pa",
+                                "block_temperature_K", "wheel_temperature_K"}
     assert np.allclose(snap.extras["brake_pipe_pressure_Pa"], 5.0 * BAR)
     assert np.all(snap.extras["brake_cylinder_pressure_Pa"] == 0.0)
     sim.advance(1.0, Commands(emergency=True))

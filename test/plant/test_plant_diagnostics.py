@@ -14,7 +14,7 @@ KEYS = ["state", "sim_time_s", "real_time_factor", "achieved_real_time_factor", 
         "inputs_handled", "resets", "recording", "verdicts", "verdict_draft_strength",
         "verdict_buff_strength", "verdict_endurable_lcf", "verdict_coupler_travel",
         "verdict_adhesion", "verdict_adhesion_at_speed", "verdict_adhesion_low_speed",
-        "verdict_standstill_holding"]
+        "verdict_standstill_holding", "verdict_wheel_temperature", "model_validity"]
 
 
 def test_pace_window_measures_simulated_over_wall_time_since_the_last_report():

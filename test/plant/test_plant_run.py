@@ -30,7 +30,8 @@ def test_a_run_is_the_train_its_values_name_with_its_settings(run):
     assert run.describe().endswith(f"at {run.spec.speed_kmh:g} km/h")
     assert run.start_line(run.settings(), "publish") == \
         f"{run.describe()}; chunk 0.02 s, lock-step, publishes /clock"
-    assert run.extra_topics() == []  # the empirical brake model has no further state
+    # the empirical brake model has no further state: the blocks' and wheels' temperature only
+    assert run.extra_topics() == ["vehicles/block_temperature", "vehicles/wheel_temperature"]
     meta = run.metadata()
     assert meta["parameters"]["consist"] == "scenario_7"
 
@@ -38,7 +39,8 @@ def test_a_run_is_the_train_its_values_name_with_its_settings(run):
 def test_the_brake_pipe_model_adds_its_pressures_as_topics():
     pipe = PlantRun.build(VALUES | {"brake_params_file": "brake_params/uic_brake_pipe.yaml"})
     assert pipe.extra_topics() == ["vehicles/brake_pipe_pressure",
-                                   "vehicles/brake_cylinder_pressure"]
+                                   "vehicles/brake_cylinder_pressure",
+                                   "vehicles/block_temperature", "vehicles/wheel_temperature"]
 
 
 def test_rebuilt_only_when_a_value_changed_and_refused_naming_the_parameter(run):

@@ -142,7 +142,8 @@ def test_recorded_run_round_trips_through_independent_readers_and_reports_like_o
     expected_topics = {f"{ns}/{t}" for t in (*ARRAY_TOPICS, *STATE_TOPICS, "clock",
                                              "brake_command", "brake_demand",
                                              "traction_command", "driver_brake_valve",
-                                             "train/description")} \
+                                             "train/description", "vehicles/block_temperature",
+                                             "vehicles/wheel_temperature")} \
         | {"/diagnostics"}
     assert set(recorded) == expected_topics
     channels = {c.topic: c for c in summary.channels.values()}

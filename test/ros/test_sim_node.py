@@ -422,6 +422,9 @@ def test_topics_qos_and_services_are_wired_as_documented(ros_context, clock):
         outputs["/diagnostics"] = (DiagnosticArray, 10)
         outputs["/wired/train/description"] = (String, 1)  # latched: checked below
         outputs["/wired/train/markers"] = (MarkerArray, 1)
+        # the brake heat of every vehicle, as every brake model gives it
+        outputs |= {f"/wired/vehicles/{t}": (Float64MultiArray, 10) for t in
+                    ("block_temperature", "wheel_temperature")}
         if clock == "publish":
             outputs["/clock"] = (Clock, 1)
         inputs = {"/wired/brake_command": Bool, "/wired/brake_demand": Float64,

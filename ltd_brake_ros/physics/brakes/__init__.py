@@ -2,7 +2,8 @@
 
 A brake model turns the driver's brake commands into the block force of every vehicle; the
 friction law (:mod:`.friction`, Eq. 4 and 8-10, shared by every model) turns block force into
-retarding force at the wheels.
+retarding force at the wheels, whose work heats the blocks and wheels (:mod:`.thermal`, shared
+by every model too).
 
 Contract
 --------
@@ -16,7 +17,9 @@ A brake model is one module of this package that defines:
    (field, unit, lower, upper, scale, meaning)}: calibration reads it, so a new model needs no
    change there. Optionally ``check_fields(params)``: combinations of fields that no brake can
    have (each field may be within its range), raised as :class:`CompileError` naming both
-   fields; the input layer calls it whenever a ``Params`` is built.
+   fields; the input layer calls it whenever a ``Params`` is built. Optionally
+   ``validity(consist, params)``: the sentences saying where a train leaves the model's
+   validated range (empty inside it); every output of a run repeats them.
 2. ``compile(consist, params, force_max_N)`` -> :class:`BrakeArrays`: per-vehicle arrays, built
    once, never mutated; ``force_max_N`` is the full block force from :func:`friction.compile`.
 3. ``initial_state(arrays)`` -> :class:`BrakeState`: the model's only mutable state, released
@@ -47,12 +50,13 @@ from typing import Any
 
 from .. import parameters
 from ..equations import jit_step
-from . import friction, linear_ramp, uic_empirical, uic_pipe
+from . import friction, linear_ramp, thermal, uic_empirical, uic_pipe
 from .base import EMERGENCY, SERVICE, BrakeArrays, BrakeState, CommandEvents, CompileError
 
 __all__ = ["EMERGENCY", "SERVICE", "BrakeArrays", "BrakeState", "BrakeParams", "CommandEvents",
            "CompileError", "DEFAULT_MODEL", "MODELS", "advance", "check_fields", "friction",
-           "model_of"]
+           "validity",
+           "model_of", "thermal"]
 
 #: Registered brake models by name.
 MODELS = {m.NAME: m for m in (
@@ -191,6 +195,26 @@ def check_fields(params) -> None:
         check(params)
 
 
+def validity(consist, params) -> list[str]:
+    """Where a run of ``consist`` leaves its brake model's validated range (the model's
+    optional ``validity(consist, params)``).
+
+    Parameters
+    ----------
+    consist : Consist
+    params : BrakeParams or dataclass
+        The run's brake parameters, or its model's ``Params``.
+
+    Returns
+    -------
+    list of str
+        One sentence per reason; empty inside the range (or for a model without one).
+    """
+    pneumatic = getattr(params, "pneumatic", params)
+    check = getattr(model_of(pneumatic), "validity", None)
+    return [] if check is None else list(check(consist, pneumatic))
+
+
 def model_of(params) -> Any:
     """The registered brake model whose ``Params`` type ``params`` is (its module)."""
     return parameters.model_of(MODELS, params)
@@ -198,11 +222,12 @@ def model_of(params) -> Any:
 
 @dataclass(frozen=True, init=False)
 class BrakeParams:
-    """Brake parameters of a run: the brake model's, the friction law's, and their file.
+    """Brake parameters of a run: the brake model's, the friction law's, the brake-heat
+    model's, and their file.
 
-    Besides ``pneumatic`` and ``friction``, every field of the two is readable as an attribute
-    (``params.t_app_s``, ``params.k0``) and may be given by name to the constructor or to
-    :func:`dataclasses.replace`.
+    Besides ``pneumatic``, ``friction`` and ``thermal``, every field of the three is readable
+    as an attribute (``params.t_app_s``, ``params.k0``) and may be given by name to the
+    constructor or to :func:`dataclasses.replace`.
 
     Parameters
     ----------
@@ -212,25 +237,30 @@ class BrakeParams:
         Friction parameters (default: the paper's).
     source : str, optional
         File the values came from.
+    thermal : thermal.Params, optional
+        Block and wheel temperature parameters (default: :class:`.thermal.Params`).
     model : str, optional
         Registered model name, when ``pneumatic`` is not given (default :data:`DEFAULT_MODEL`).
     **fields
-        Values of individual fields of either part.
+        Values of individual fields of any part.
 
     Attributes
     ----------
     pneumatic : dataclass
     friction : friction.Params
+    thermal : thermal.Params
     source : str
     """
 
     pneumatic: Any
     friction: friction.Params
+    thermal: thermal.Params
     source: str
 
     def __init__(self, pneumatic=None, friction=None, source: str = "built-in defaults", *,
-                 model: str | None = None, **fields):
+                 thermal=None, model: str | None = None, **fields):
         from . import friction as friction_module
+        from . import thermal as thermal_module
 
         if pneumatic is None:
             name = model or DEFAULT_MODEL
@@ -240,7 +270,8 @@ class BrakeParams:
         elif model is not None and model_of(pneumatic).NAME != model:
             raise ValueError(f"model {model!r} does not match {type(pneumatic).__qualname__}")
         friction = friction_module.Params() if friction is None else friction
-        parts = {"pneumatic": pneumatic, "friction": friction}
+        thermal = thermal_module.Params() if thermal is None else thermal
+        parts = {"pneumatic": pneumatic, "friction": friction, "thermal": thermal}
         for part, value in parts.items():
             names = {f.name for f in dataclasses.fields(value)}
             mine = {k: fields.pop(k) for k in list(fields) if k in names}
@@ -251,6 +282,7 @@ class BrakeParams:
                             f"{', '.join(map(repr, fields))}")
         object.__setattr__(self, "pneumatic", parts["pneumatic"])
         object.__setattr__(self, "friction", parts["friction"])
+        object.__setattr__(self, "thermal", parts["thermal"])
         object.__setattr__(self, "source", str(source))
 
     @property
@@ -261,7 +293,7 @@ class BrakeParams:
     def __getattr__(self, name: str):
         # only called for names that are not attributes: the fields of the two parts
         if not name.startswith("_"):
-            for part in ("pneumatic", "friction"):
+            for part in ("pneumatic", "friction", "thermal"):
                 value = self.__dict__.get(part)
                 if value is not None and hasattr(value, name):
                     return getattr(value, name)

@@ -4,7 +4,8 @@ The brake pipe is a 1-D isothermal compressible flow along the train (continuity
 the convective term neglected at the pipe's low Mach numbers), one finite volume per vehicle
 (its length over buffers, the pipe bore and the branch volume of its distributor), one face per
 hose coupling carrying the mass flow between two volumes with wall friction (laminar 64/Re,
-turbulent Blasius) and a concentrated loss per coupling. Both ends are closed. Branch flows leave
+turbulent Colebrook, in Haaland's explicit form, with the wall roughness of commercial steel)
+and a concentrated loss per vehicle junction. Both ends are closed. Branch flows leave
 or enter each volume: the driver's brake valve (feed valve from the main reservoir, relay vent,
 emergency orifice) at the venting vehicle, and at every braked vehicle the charging of its
 auxiliary reservoir, its quick-service chamber and its acceleration chamber (emergency
@@ -112,7 +113,9 @@ S_OVER, S_OVER_HOLD, S_OVER_RATE = 48, 49, 50
 # ---- per face (i, i + 1)
 C_FACE_G = 51  # dt * A / dx: conductance of the face without friction [m s]
 C_FACE_HOSE = 52  # hose loss per length, K / dx [1/m]
-N_COEF = 53
+# ---- scalars (continued)
+S_ROUGH = 53  # relative roughness of the pipe wall, epsilon / D [-]
+N_COEF = 54
 
 # ---- columns of BrakeState.extra
 X_P = 0  # pipe pressure, absolute [Pa]
@@ -163,9 +166,14 @@ class Params:
                                        lo=0.01, hi=0.1)
     branch_volume_m3: float = parameter(0.003, "volume of each vehicle's distributor branch and "
                                         "dirt collector (fitted) [m3]", lo=0.0, hi=0.05)
-    hose_loss_coefficient: float = parameter(10.0, "concentrated loss coefficient of a hose "
-                                             "coupling with its cocks (fitted) [-]", lo=0.0,
-                                             hi=50.0)
+    hose_loss_coefficient: float = parameter(3.92, "concentrated loss coefficient of a "
+                                             "vehicle junction (hose coupling and cocks) "
+                                             "referred to the pipe bore: TrainDy's two losses "
+                                             "of 3 per junction at 35.6 mm bore, 6 (32/35.6)^4 "
+                                             "= 3.92 at 32 mm [-]", lo=0.0, hi=50.0)
+    pipe_roughness_m: float = parameter(4.6e-5, "wall roughness of the pipe for the "
+                                        "Colebrook friction factor (commercial steel, 0.046 mm, "
+                                        "as TrainDy) [m]", lo=0.0, hi=1e-3)
     air_temperature_K: float = parameter(288.0, "air temperature, isothermal pipe [K]",
                                          lo=200.0, hi=350.0)
     air_viscosity_Pa_s: float = parameter(1.8e-5, "dynamic viscosity of air [Pa s]",
@@ -322,6 +330,46 @@ FITTABLE = {
 }
 
 
+#: The model's validated range: the longest run of brake pipe from the nearest driver's brake
+#: valve to a train end [m]. Its targets (UIC 540 windows and propagation at 500-1 500 m,
+#: SUBSET-026's build-up time as a bound at 300-1 500 m, ``ltd-brake validate --brake-pipe``)
+#: reach trains of up to 1 500 m vented from one end; longer trains run in reality with
+#: distributed power (a driver's brake valve on every locomotive, repeated by radio).
+MAX_VENTED_LENGTH_M = 1500.0
+
+
+def validity(consist, p: Params) -> list[str]:
+    """Where a run of this train leaves the model's validated range (empty: inside it).
+
+    Parameters
+    ----------
+    consist : Consist
+    p : Params
+
+    Returns
+    -------
+    list of str
+        One sentence per reason.
+    """
+    vs = consist.vehicles
+    length = np.array([v.length_m for v in vs], float)
+    front = np.concatenate(([0.0], np.cumsum(length)[:-1]))  # of each vehicle, from the head
+    vent = int(getattr(consist, "venting_vehicle", 0))
+    valves = [vent] + ([i for i, v in enumerate(vs) if v.traction is not None and i != vent]
+                       if p.distributed_power else [])
+    # the points furthest from every valve: the train's ends and midway between two valves
+    centres = np.sort(front[valves] + length[valves] / 2)
+    points = np.concatenate(([0.0, float(length.sum())], (centres[1:] + centres[:-1]) / 2))
+    far = float(np.max(np.min(np.abs(points[:, None] - centres[None, :]), axis=1)))
+    if far <= MAX_VENTED_LENGTH_M:
+        return []
+    how = ("with distributed power" if len(valves) > 1 else "vented from one end")
+    return [f"brake-pipe model outside its validated range: {far:.0f} m of pipe from the "
+            f"nearest driver's brake valve ({length.sum():.0f} m train, {how}), "
+            f"beyond the {MAX_VENTED_LENGTH_M:.0f} m its UIC 540 and SUBSET-026 targets "
+            "reach; pressures, delays and forces there are an extrapolation"]
+
+
 def check_fields(p: Params) -> None:
     """Combinations of pressures and volumes no UIC brake has, each named with the other.
 
@@ -403,6 +451,7 @@ def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  #
     scalars = {
         S_DT: p.pipe_step_s, S_AREA: area, S_DIAM: p.pipe_diameter_m,
         S_HOSE_K: p.hose_loss_coefficient, S_MU: p.air_viscosity_Pa_s, S_RT: rt,
+        S_ROUGH: p.pipe_roughness_m / p.pipe_diameter_m,
         S_P_RUN: P_ATM + p.running_pressure_Pa, S_P_MR: P_ATM + p.main_reservoir_pressure_Pa,
         S_A_FEED: p.feed_area_m2, S_A_VENT: p.service_vent_area_m2,
         S_A_EMERG: p.emergency_area_m2, S_BAND: p.relay_band_Pa,
@@ -569,15 +618,19 @@ def _pipe_step(coef, extra, dt, a, b, c, rhs, work):
             rhs[i] += (dq * p - q) * kflow
     # face flow under friction, linearised: m_new (1 + dt lam) = m + dt A / dx (p_f - p_f+1),
     # dt lam = dt R T / A (f_m / D + K |m| / dx) / (p_f + p_f+1), f_m = f |m| (64/Re laminar
-    # floor, Blasius 0.316 Re^-1/4 turbulent)
+    # floor; turbulent: Colebrook's friction factor in Haaland's explicit form, within 2 %,
+    # 1/sqrt(f) = -1.8 log10((eps/D / 3.7)^1.11 + 6.9/Re))
     c_lam = dt * rt / area
     inv_diam = 1.0 / diam
-    blasius = 0.316 * (area * mu / diam) ** 0.25  # f |m| = blasius |m|^(3/4)
+    re_per_m = diam / (area * mu)  # Re per kg/s of face flow
+    rough = (coef[0, S_ROUGH] / 3.7) ** 1.11
     for f in range(n - 1):
         m = extra[f, X_M]
         am = abs(m)
-        r = math.sqrt(am)
-        fm = max(lam_floor, blasius * r * math.sqrt(r))
+        fm = lam_floor
+        if am * re_per_m > 2000.0:
+            x = -1.8 * math.log10(rough + 6.9 / (am * re_per_m))
+            fm = max(lam_floor, am / (x * x))
         psum = extra[f, X_P] + extra[f + 1, X_P]
         inv_den = psum / (psum + c_lam * (fm * inv_diam + coef[f, C_FACE_HOSE] * am))
         g = coef[f, C_FACE_G] * inv_den
