@@ -179,3 +179,17 @@ def test_bad_fit_options_exit_2_with_clear_message(argv, words, one_line_error):
 def test_draft_limit_must_be_positive(one_line_error):
     assert main(["calibrate", "--target", "forces", "--draft-limit-kn", "0", "--quiet"]) == 2
     assert "--draft-limit-kn" in one_line_error("calibrate")
+
+
+def test_the_written_file_keeps_the_brake_heat_fields_of_its_input(tmp_path):
+    from ltd_brake_ros.inputs.schema import config_dir
+
+    params = tmp_path / "mine.yaml"
+    params.write_text((config_dir() / "brake_params" / "paper.yaml").read_text()
+                      + "\nwheel_mass_kg: 380\n")
+    out = tmp_path / "fitted.yaml"
+    assert main(["calibrate", "--target", "paper", "--fit", "k0", "--scenarios", "1",
+                 "--step-s", "0.05", "--jobs", "1", "--quiet", "--no-cross-validation",
+                 "--params", str(params), "--out", str(out)]) == 0
+    assert load_brake_params(out).wheel_mass_kg == 380.0
+    assert load_brake_params(out).block_mass_kg == load_brake_params(params).block_mass_kg

@@ -164,7 +164,8 @@ def parameter_lines(params: BrakeParams) -> list[str]:
     """Every field of a brake-parameter set as brake-parameter YAML lines, with their meaning.
 
     Keys and units are the file's (a field declared with ``key=``/``scale=`` is written as
-    the file reads it), so the lines alone reproduce ``params``.
+    the file reads it), so the lines alone reproduce ``params``; brake-heat fields are written
+    where they differ from their defaults.
 
     Parameters
     ----------
@@ -177,6 +178,11 @@ def parameter_lines(params: BrakeParams) -> list[str]:
     body = [] if params.model == brakes.DEFAULT_MODEL else [f"model: {params.model}"]
     fields = [(name, spec) for part in (params.pneumatic, params.friction)
               for name, spec in specs(type(part)).items()]
+    # the brake-heat fields only where they differ from their defaults: a fit never moves
+    # them, and a file that set them keeps them
+    heat = type(params.thermal)()
+    fields += [(name, spec) for name, spec in specs(type(params.thermal)).items()
+               if getattr(params.thermal, name) != getattr(heat, name)]
     width = max(len(spec.key or name) for name, spec in fields) + 2
     for name, spec in fields:
         value = _file_value(getattr(params, name), spec)

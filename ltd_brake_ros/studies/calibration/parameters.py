@@ -198,7 +198,7 @@ def parse_values(text: str, model: str, part: str = "brake") -> dict[str, float]
 
 def _field_comment(params: BrakeParams, name: str) -> str:
     """Meaning and unit of a parameter field, as its model declares them."""
-    for part in (params.pneumatic, params.friction):
+    for part in (params.pneumatic, params.friction, params.thermal):
         declared = specs(type(part))
         if name in declared:
             return declared[name].doc
