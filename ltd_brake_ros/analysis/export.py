@@ -22,7 +22,9 @@ FILES = {"vehicles/speed": "speed_m_s.csv", "vehicles/position": "position_m.csv
          "couplers/force": "coupler_force_N.csv", BRAKE_COMMAND: "brake_command.csv",
          "coupler_peaks": "coupler_peaks.csv",
          "vehicles/brake_pipe_pressure": "brake_pipe_pressure_Pa.csv",
-         "vehicles/brake_cylinder_pressure": "brake_cylinder_pressure_Pa.csv"}
+         "vehicles/brake_cylinder_pressure": "brake_cylinder_pressure_Pa.csv",
+         "vehicles/block_temperature": "block_temperature_K.csv",
+         "vehicles/wheel_temperature": "wheel_temperature_K.csv"}
 
 
 def write_csv(report: RunReport, outdir) -> list[Path]:

@@ -23,7 +23,8 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
     verdicts' strength limits where the peaks come within half of them) and
     ``coupler_force_map.png`` (coupler x time, diverging colours centred at zero, draft red)
     and, when a brake pipe was recorded, ``brake_pipe.png`` (pipe pressure along the train at
-    the kept instants, cylinder pressure of the head wagon and the tail in time).
+    the kept instants, cylinder pressure of the head wagon and the tail in time), and when the
+    brake heat was, ``brake_temperature.png`` (the hottest blocks and wheels in time).
 
     Parameters
     ----------
@@ -130,6 +131,19 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
         save(profiles_figure(report.pipe_distance_m, report.pipe_profile_time_s,
                              report.pipe_profile_Pa, report.cylinder_time_s, cylinders,
                              title=f"Brake pipe {title}".strip()), "brake_pipe.png")
+    if report.temperature_time_s.size:
+        fig = Figure(figsize=(8, 4.5), layout="constrained")
+        ax = fig.add_subplot()
+        ax.plot(report.temperature_time_s, report.hottest_block_K - 273.15,
+                label="blocks (the hottest vehicle's)")
+        ax.plot(report.temperature_time_s, report.hottest_wheel_K - 273.15,
+                label="wheels (the hottest vehicle's)", ls="--")
+        mark_command(ax)
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("temperature [C]")
+        ax.set_title(f"Brake heat {title}".strip())
+        ax.legend(loc="best", fontsize=8)
+        save(fig, "brake_temperature.png")
     report.plots = paths
     return paths
 

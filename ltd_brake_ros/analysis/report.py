@@ -54,12 +54,14 @@ CSV export re-reads the file.
 """
 from __future__ import annotations
 
+import math
 import warnings
 from array import array
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..physics.brakes.thermal import Peaks
 from ..physics.constants import KMH_PER_MS, STANDSTILL_M_S
 from ..recording.cdr import decode_string
 from ..recording.reader import BagError, TruncatedBagWarning, bag_info, read_bag
@@ -233,6 +235,11 @@ class RunReport:
         The limits the verdicts judge by.
     verdicts : Verdicts or None
         Strength and adhesion verdicts (None: no vehicle speeds recorded).
+    temperature_time_s, hottest_block_K, hottest_wheel_K : ndarray
+        The hottest vehicle's blocks and wheels over time [s, K] (empty: not recorded).
+    temperatures : Peaks or None
+        The hottest blocks and wheels of the run, which vehicle and when
+        (:class:`~ltd_brake_ros.physics.brakes.thermal.Peaks`; None: not recorded).
     stamped : bool
         Times come from the stamped states (a recording by another recorder, e.g.
         ``ros2 bag record``), not from the log times.
@@ -293,6 +300,10 @@ class RunReport:
     plots: list = field(default_factory=list)
     stamped: bool = False
     notes: list = field(default_factory=list)
+    temperature_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    hottest_block_K: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    hottest_wheel_K: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    temperatures: Peaks | None = None
 
     @property
     def warnings(self) -> list[str]:
@@ -331,6 +342,7 @@ class RunReport:
         out["sign_convention"] = _SIGN
         out["plots"] = [str(p) for p in self.plots]
         out["warnings"] = self.warnings
+        out["brake_heat"] = None if self.temperatures is None else self.temperatures.as_dict()
         out["time_base"] = "state header stamps" if self.stamped else "log times"
         out["notes"] = list(self.notes)
         return out
@@ -386,6 +398,8 @@ class RunReport:
             lines += [f"  {line}" for line in self.verdicts.describe()]
         for p in self.plots:
             lines.append(f"Plot: {p}")
+        if self.temperatures is not None:
+            lines.append(f"Brake heat: {self.temperatures.describe()}")
         lines += [f"Warning: {w}" for w in self.warnings]
         lines += [f"Note: {note}" for note in self.notes]
         return "\n".join(lines)
@@ -514,6 +528,7 @@ def analyse(path, namespace: str | None = None) -> RunReport:
     head_wagon = None
     first_position = None
     pipe = _Pipe()
+    heat_watch = _Heat()
     for name, t, _log_ns, value in plant_samples(path, ns, stamped):
         if name == "vehicles/speed":
             n_vehicles = value.size
@@ -553,6 +568,10 @@ def analyse(path, namespace: str | None = None) -> RunReport:
         elif name == BRAKE_COMMAND and command_t is None and value:
             command_t = t
             pipe.command()
+        elif name == "vehicles/block_temperature":
+            heat_watch.add("block", t, value)
+        elif name == "vehicles/wheel_temperature":
+            heat_watch.add("wheel", t, value)
         elif name == "vehicles/brake_pipe_pressure":
             pipe.pipe(t, value)
         elif name == "vehicles/brake_cylinder_pressure":
@@ -607,6 +626,7 @@ def analyse(path, namespace: str | None = None) -> RunReport:
         rep.heat_t0_s, rep.heat_t1_s, rep.heat_force_N = heat.result()
     pipe.result(rep, first_position,
                 command_t if command_t is not None else rep.start_time_s)
+    heat_watch.result(rep, metadata)
     if watch is not None and watch.fits(n_vehicles, rep.n_couplers):
         head = speed.np("head")
 
@@ -627,6 +647,38 @@ def analyse(path, namespace: str | None = None) -> RunReport:
             holding_reason="not assessed from a recording: it holds no brake state at rest",
             first_time_s=watch.first_time_s)
     return rep
+
+
+class _Heat:
+    """The brake-heat temperatures while the recording streams: the hottest vehicle in time
+    and each vehicle's peak."""
+
+    def __init__(self):
+        self.series = {"block": _Series("t", "K"), "wheel": _Series("t", "K")}
+        self.peak: dict = {}
+
+    def add(self, which: str, t: float, value: np.ndarray) -> None:
+        if not np.isfinite(value).any():
+            return
+        self.series[which].add(t, float(np.nanmax(value)))
+        peak, when = self.peak.setdefault(which, (np.full(value.size, np.nan),
+                                                  np.full(value.size, np.nan)))
+        if peak.size != value.size:
+            return  # the arrays' lengths are checked by the samples
+        up = np.nan_to_num(value, nan=-np.inf) > np.nan_to_num(peak, nan=-np.inf)
+        peak[up], when[up] = value[up], t
+
+    def result(self, rep: "RunReport", metadata: dict) -> None:
+        block, wheel = self.series["block"], self.series["wheel"]
+        if not (len(block) and len(wheel)):
+            return
+        n = min(len(block), len(wheel))
+        rep.temperature_time_s = block.np("t")[:n]
+        rep.hottest_block_K, rep.hottest_wheel_K = block.np("K")[:n], wheel.np("K")[:n]
+        ambient = metadata.get("ambient_temperature_K")
+        rep.temperatures = Peaks.from_arrays(
+            *self.peak["block"], *self.peak["wheel"],
+            float(ambient) if _number(ambient) is not None else math.nan)
 
 
 class _Pipe:

@@ -57,6 +57,8 @@ def run_metadata(sim, *, scenario=None, parameters: dict | None = None, **extra)
         "tolerance_m_s": float(sim.tolerance_m_s or 0.0),  # 0: fixed steps
         # strength and adhesion limits the run was judged by (kN, t): the report reads them back
         "limits": limits_metadata(sim.limits),
+        # the air the brake-heat model starts and cools to [K]
+        "ambient_temperature_K": float(sim.model.thermal.ambient_K),
     }
     warnings = model_warnings(sim)
     if warnings:  # the run is outside a model's validated range
