@@ -240,7 +240,9 @@ def test_recorded_run_round_trips_through_independent_readers_and_reports_like_o
     assert rep.peak_buff_kN == pytest.approx(ref.peak_buff_kN, rel=1e-2)
     assert rep.metadata["consist"]["name"] == scenario.consist().name
     plots = write_plots(rep, tmp_path / "plots")
-    assert len(plots) == 4
+    # speed, brake force, coupler peaks and map, and the brake heat every run now records
+    assert [p.name for p in plots] == ["speed.png", "brake_force.png", "coupler_peaks.png",
+                                       "coupler_force_map.png", "brake_temperature.png"]
     for p in plots:
         assert p.read_bytes()[:8] == PNG and p.stat().st_size > 10_000, p
 
