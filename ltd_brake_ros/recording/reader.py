@@ -764,7 +764,10 @@ def bag_info(path) -> BagInfo:
     total, start, end = 0, None, None
     for ix in indexes:
         st = ix.statistics
-        if st is not None and st.message_count == sum(st.channel_message_counts.values()):
+        # the statistics only when they agree with themselves and name the file's channels
+        # (a damaged summary of an unfinished file may not)
+        if st is not None and st.message_count == sum(st.channel_message_counts.values()) \
+                and set(st.channel_message_counts) <= set(ix.channels):
             counts = st.channel_message_counts
             if st.message_count:
                 start = st.message_start_time if start is None else min(start,

@@ -19,7 +19,7 @@ from collections import Counter
 from datetime import timedelta
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Bool, Float64
@@ -90,6 +90,9 @@ def _quiet():
 @settings(max_examples=120, **SETTINGS)
 @given(compression=st.sampled_from(["zstd", "lz4", "none"]), cut=st.floats(0.0, 1.0),
        flips=st.lists(st.tuples(st.floats(0.0, 1.0), st.integers(1, 255)), max_size=3))
+# an unfinished file whose surviving statistics name a channel id with one bit flipped: the
+# counts must not be taken from them
+@example(compression="zstd", cut=0.875, flips=[(0.9, 1)])
 def test_truncated_and_flipped_files(genuine, tmp_path_factory, compression, cut, flips):
     data = bytearray(genuine[compression])
     for where, mask in flips:
