@@ -36,6 +36,17 @@ SPIN_PERIOD_S = 0.2
 _RCL_WHERE = re.compile(r", at \S+:\d+")
 
 
+def _caused_by_interrupt(exc: BaseException):
+    """The :class:`Interrupted` in ``exc``'s chain of causes, or None."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, Interrupted):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
 class Interrupted(KeyboardInterrupt):
     """SIGINT or SIGTERM while the node starts (nothing to finish yet).
 
@@ -297,6 +308,13 @@ def run(name: str, args: list[str] | None, make_node: Callable[[list[str]], Node
         log.fatal(f"cannot start: {exc}")
         return 1
     except ExternalShutdownException:
+        return 0
+    except Exception as exc:
+        # the signal's Interrupted wrapped by Python on its way out (raised inside a class
+        # body's __set_name__, say, while an import loads): still the signal, not a failure
+        if not _caused_by_interrupt(exc):
+            raise
+        log.info(f"{_caused_by_interrupt(exc)} while starting: stopped")
         return 0
     finally:
         if node is not None:
