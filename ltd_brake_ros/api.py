@@ -389,15 +389,15 @@ class RunResult:
         return self.timeseries.to_xarray()
 
 
-def _announce_compile() -> None:
+def _announce_compile(consist: Consist, params: BrakeParams | None) -> None:
     """Say on stderr that the simulation kernels compile now (first run after installing)."""
-    from .simulator import kernels_cached
+    from .simulator import compile_notice
 
-    if kernels_cached() is False:
+    notice = compile_notice(consist, params)
+    if notice:
         import sys
 
-        print("ltd_brake_ros: compiling the simulation kernels (first run only; about a minute "
-              "on two cores)", file=sys.stderr, flush=True)
+        print(f"ltd_brake_ros: {notice}", file=sys.stderr, flush=True)
 
 
 def _attrs(sim: Simulator, speed_kmh: float) -> dict:
@@ -439,7 +439,7 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
     SimulationError
         A step failed, or the train did not stop within ``max_time_s``.
     """
-    _announce_compile()
+    _announce_compile(consist, params)
     sampler = _Sampler()
     start = time.perf_counter()
     sim = emergency_run(consist, speed_kmh, params, coupler, track, step_s=step_s,
@@ -474,7 +474,7 @@ def run_commands(consist: Consist, speed_kmh: float, commands, *,
         ``summary`` is None when the train did not stop.
     """
     script = commands if isinstance(commands, CommandScript) else load_commands(commands)
-    _announce_compile()
+    _announce_compile(consist, params)
     sampler = _Sampler()
     start = time.perf_counter()
     sim = scripted_run(consist, speed_kmh, script, params, coupler, track, step_s=step_s,

@@ -71,21 +71,66 @@ _COMPILED_KEPT = 8
 _COMPILED_LOCK = threading.Lock()
 
 
-def kernels_cached() -> bool | None:
-    """Whether the compiled simulation kernels are in numba's on-disk cache already.
+def kernels_cached(brake_model: str | None = None, local_steps: bool = False) -> bool | None:
+    """Whether a run's compiled step loop is in numba's on-disk cache already.
+
+    Parameters
+    ----------
+    brake_model : str, optional
+        Name of the run's brake model (default: the paper's).
+    local_steps : bool, optional
+        The run can sub-step part of the train (a train of
+        :data:`~ltd_brake_ros.physics.kernel.LOCAL_MIN_VEHICLES` vehicles or more, with error
+        control).
 
     Returns
     -------
     bool or None
-        False: the next simulator compiles them (tens of seconds, once per installation and
-        machine); True: it loads them; None: numba does not say.
+        False: the next simulator compiles it (seconds, once per installation, machine and
+        brake model); True: it loads it; None: numba does not say.
     """
+    from .physics import brakes
+
+    model = brakes.MODELS.get(brake_model or brakes.DEFAULT_MODEL)
+    if model is None:
+        return None
     try:
-        # an index holding a compiled overload (the stale-cache check at import may leave an
-        # empty index behind: that is not a compiled kernel)
-        return bool(kernel.run_loop._cache._cache_file._load_index())
+        # an index holding a compiled overload (the stale-cache check leaves an empty index
+        # behind: that is not a compiled kernel)
+        loop = kernel._loop(model.ID, bool(local_steps))
+        return bool(loop._cache._cache_file._load_index())
     except (AttributeError, OSError, EOFError, ValueError):  # another numba, or no numba
         return None
+
+
+#: Seconds the first run of a train compiles its kernels, on an idle 2-core machine
+#: (``benchmarks/bench_startup.py``).
+COMPILE_S = 15
+
+
+def compile_notice(consist: Consist | None = None, params: BrakeParams | None = None
+                   ) -> str | None:
+    """What to tell the user before a run of ``consist`` that compiles its kernels.
+
+    Parameters
+    ----------
+    consist : Consist, optional
+        The run's train (its length decides whether local time stepping is compiled in).
+    params : BrakeParams, optional
+        The run's brake parameters (default: the paper's model).
+
+    Returns
+    -------
+    str or None
+        One line; None when the kernels are cached (or numba does not say).
+    """
+    model = None if params is None else brakes_module.model_of(
+        getattr(params, "pneumatic", params)).NAME
+    local = consist is not None and len(consist.vehicles) >= kernel.LOCAL_MIN_VEHICLES
+    if kernels_cached(model, local) is not False:
+        return None
+    return (f"compiling the simulation kernels (first run only; about {COMPILE_S} s on two "
+            "cores)")
 
 
 def _compiled(consist: Consist, params: BrakeParams, coupler, track: Track, resistance: bool,

@@ -75,18 +75,17 @@ def _start_up(spec, params, lut, adhesion) -> float:
     import sys
     import time
 
-    from ..simulator import Simulator, kernels_cached
+    from ..simulator import Simulator, compile_notice
 
-    cached = kernels_cached()
-    if cached is False:
-        print("compiling the simulation kernels (first run only; about a minute on two cores)",
-              file=sys.stderr, flush=True)
+    notice = compile_notice(spec.consist, params)
+    if notice:
+        print(notice, file=sys.stderr, flush=True)
     start = time.perf_counter()
     # the same train as the run's: the run then takes this compiled model and bound step loop
     Simulator(spec.consist, spec.speed_kmh, params, lut, spec.track,
               adhesion=adhesion).warm_up()
     took = time.perf_counter() - start
-    if cached is False:
+    if notice:
         print(f"compiled the simulation kernels in {took:.0f} s; later runs load them",
               file=sys.stderr, flush=True)
     return took

@@ -41,13 +41,71 @@ try:  # pragma: no cover - exercised implicitly
         """
         return njit(cache=True, nogil=True, _nrt=False, error_model="numpy")(fn)
 
+    def jit_inner(fn):
+        """:func:`jit` for a function that compiled code calls (see :class:`_Inner`)."""
+        return _Inner.create(fn, {})
+
+    def jit_step_inner(fn):
+        """:func:`jit_step` for a function that compiled code calls (see :class:`_Inner`)."""
+        return _Inner.create(fn, {"_nrt": False})
+
+    from numba.core.registry import CPUDispatcher
+
+    class _Inner(CPUDispatcher):
+        """A compiled function without the entry points a call from Python needs.
+
+        numba builds, for every compiled function, a CPython wrapper that unboxes each
+        argument (every array of every bundle, with its checks) and a C wrapper, and compiles
+        both to machine code: for the kernel's inner functions, most of the first run's
+        compile time, and never used (compiled callers call the native function). A call from
+        Python goes to a twin compiled with the wrappers on first use (cached apart).
+        """
+
+        #: Called with each twin before its first compile (the physics package checks there
+        #: whether its disk cache is stale, see ``brakes.refresh_stale_cache``).
+        on_twin = None
+
+        @classmethod
+        def create(cls, fn, options):
+            """The dispatcher of ``fn`` compiled with numba's ``options`` (cached on disk)."""
+            opts = dict(options, nopython=True, nogil=True, no_cpython_wrapper=True,
+                        no_cfunc_wrapper=True)
+            disp = cls(py_func=fn, locals={}, targetoptions=opts)
+            disp.enable_caching()
+            disp._twin_options = dict(options)
+            return disp
+
+        def __call__(self, *args, **kwargs):
+            twin = self.__dict__.get("_twin")
+            if twin is None:
+                import types as _types
+
+                fn = self.py_func
+                copy = _types.FunctionType(fn.__code__, fn.__globals__, fn.__name__,
+                                           fn.__defaults__, fn.__closure__)
+                copy.__qualname__ = fn.__qualname__ + "_from_python"
+                copy.__module__, copy.__doc__ = fn.__module__, fn.__doc__
+                twin = njit(cache=True, nogil=True, **self._twin_options)(copy)
+                if _Inner.on_twin is not None:
+                    _Inner.on_twin(twin)
+                self._twin = twin
+            return twin(*args, **kwargs)
+
+    def on_python_twin(hook):
+        """Call ``hook(dispatcher)`` with each twin for calls from Python (see :class:`_Inner`)
+        before its first compile."""
+        _Inner.on_twin = staticmethod(hook)
+
     HAVE_NUMBA = True
 except ImportError:  # pragma: no cover - fallback keeps the package usable, only slower
     def jit(fn):
         """No-op stand-in for the numba decorator."""
         return fn
 
-    jit_inline = jit_step = jit_vector = jit
+    jit_inline = jit_step = jit_vector = jit_inner = jit_step_inner = jit
+
+    def on_python_twin(hook):
+        """No twins without numba."""
 
     HAVE_NUMBA = False
 

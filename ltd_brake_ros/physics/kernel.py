@@ -44,12 +44,14 @@ in place), a :data:`STATS_DTYPE` record of counters and :class:`Options`.
 from __future__ import annotations
 
 import math
+import types
 
 import numpy as np
 
 from . import brakes
 from .brakes import adhesion, friction, thermal
-from .equations import HAVE_NUMBA, jit, jit_step, lut_segment, resistance_coefficients
+from .equations import (HAVE_NUMBA, jit_step, jit_step_inner, lut_segment,
+                        resistance_coefficients)
 from .bundles import (ACCEL_VALID, ADHESION_SPLIT_SPEED_M_S, CURVE, DEFAULT_NEWTON_RTOL,
                       DEFAULT_TOLERANCE_M_S, FULL_APPLICATION, GRADIENT, Inputs, KinematicState,
                       MEAN_ADHESION_MIN_SPEED_M_S, NEWTON_FAILED, NEXT_STEP, NOT_FINITE, OK,
@@ -61,6 +63,12 @@ from .step_control import (MIN_STEP_FRACTION, NEWTON_SHRINK, _bdf2, _error_ratio
 from .newton import FAST_ITERATIONS, _newton
 from .local_steps import LOCAL_MIN_VEHICLES, LOCAL_SHRINK, _refine_all
 
+#: What :func:`run_loop` calls to advance the brakes and to sub-step part of the train: every
+#: model (the branch of ``arrays.model``) and local time stepping; :func:`loop_for` compiles it
+#: with one model's ``advance`` and, where local steps cannot run, without them.
+advance_brakes = brakes.advance
+refine_all = _refine_all
+
 #: The kernel's interface (the bundles and constants from :mod:`.bundles`, and what this module
 #: defines), as its callers use it.
 __all__ = ["ACCEL_VALID", "ADHESION_SPLIT_SPEED_M_S", "CURVE", "DEFAULT_NEWTON_RTOL",
@@ -68,11 +76,11 @@ __all__ = ["ACCEL_VALID", "ADHESION_SPLIT_SPEED_M_S", "CURVE", "DEFAULT_NEWTON_R
            "LOCAL_MIN_VEHICLES", "MEAN_ADHESION_MIN_SPEED_M_S", "NEWTON_FAILED", "NEXT_STEP",
            "NOT_FINITE", "OK", "OUT_OF_RANGE", "Options", "SECTION_START", "STATS_DTYPE",
            "STOPPED", "Stats", "TrackArrays", "TractionArrays", "TrainArrays", "TrainModel",
-           "advance_traction", "bind_run_loop", "bind_run_steps", "new_stats", "new_workspace",
+           "advance_traction", "bind_run_loop", "loop_for", "new_stats", "new_workspace",
            "read_stats", "run_loop", "run_steps", "track_forces"]
 
 
-@jit_step
+@jit_step_inner
 def advance_traction(h, cmd, v, ftr, tr):
     """Advance the applied traction/dynamic-brake force of powered vehicles (in place).
 
@@ -140,7 +148,6 @@ def track_forces(x, train, track, fgrade, rcurve):
         rcurve[i] = weight_kN * sections[CURVE, k]
 
 
-@jit
 def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats, options,
               watch_stop):
     """Advance the train ``nsteps`` nominal steps of ``h`` seconds (state updated in place).
@@ -195,11 +202,11 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
         Nominal steps completed.
     """
     ws = new_workspace(model, state, brake_state, options)
-    return run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats, options,
-                     watch_stop, ws)
+    args = (nsteps, h, t, hp, model, inputs, state, brake_state, events, stats, options,
+            watch_stop, ws)
+    return loop_for(model, state, options)(*args)
 
 
-@jit
 def new_workspace(model, state, brake_state, options):
     """The work arrays of :func:`run_loop` for a train, its state and options.
 
@@ -221,14 +228,9 @@ def new_workspace(model, state, brake_state, options):
     n = state.x_m.shape[0]
     nc = max(n - 1, 1)
     mass, axles = model.train.mass_kg, model.train.axles
-    tol = np.empty(n)
-    res_a = np.empty((n, 3))
-    for i in range(n):
-        tol[i] = options.newton_rtol * mass[i] * 9.81
-        a0, a1, a2 = resistance_coefficients(mass[i], axles[i])
-        res_a[i, 0] = a0
-        res_a[i, 1] = a1
-        res_a[i, 2] = a2
+    tol = options.newton_rtol * mass * 9.81
+    res_a = np.array([resistance_coefficients(m, a) for m, a in zip(mass, axles)],
+                     dtype=np.float64).reshape(n, 3)
     fb = brake_state.force_N
     return _Workspace(
         np.empty(n), np.empty(n), np.empty(n), np.empty(n, np.bool_), np.empty(n, np.bool_),
@@ -251,7 +253,7 @@ def new_workspace(model, state, brake_state, options):
                np.empty(n)), np.zeros(n))
 
 
-@jit_step
+@jit_step_inner
 def _copy_undo(fb, lvl, kind, nxt, extra, ftr, fb_to, lvl_to, kind_to, nxt_to, extra_to, ftr_to):
     """Copy what a rejected step must undo: the brake state's arrays and the applied traction."""
     for i in range(fb.shape[0]):
@@ -343,7 +345,7 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
             if adaptive:
                 _copy_undo(fb, lvl, lkind, nxt, extra, ftr,
                            save_fb, save_lvl, save_kind, save_next, save_extra, save_ftr)
-            brakes.advance(model.brakes, brake_state, events, tc, t1)
+            advance_brakes(model.brakes, brake_state, events, tc, t1)
             # traction and track forces vary slowly: taken at the start of the step
             advance_traction(hs, inputs.traction_demand, v, ftr, model.traction)
             if not fixed_track:
@@ -383,7 +385,7 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
                 reject = ratio > 1.0 and hs > h_min
             if reject and refine:
                 # sub-step only the vehicles that need it, if they are few
-                outside = _refine_all(h, tc, hs, hp, code == NEWTON_FAILED, model, state, ws, s,
+                outside = refine_all(h, tc, hs, hp, code == NEWTON_FAILED, model, state, ws, s,
                                       u, stuck1, options, stats)
                 if outside >= 0.0:
                     reject = False
@@ -483,31 +485,14 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
     return OK, t, hp, nsteps
 
 
-def bind_run_steps(*args):
-    """:func:`run_steps` compiled for the types of ``args``, callable without numba's dispatch.
-
-    Numba types every argument of every call, recursively through the bundles (about 60
-    arrays for a train), which costs more than a short chunk's physics; the returned callable
-    skips that. Call it only with arguments of the same types (the same bundles, arrays of
-    the same dtype, dimension and C layout).
-
-    Parameters
-    ----------
-    *args
-        A valid argument list of :func:`run_steps` (it is not run).
-
-    Returns
-    -------
-    callable
-        Same arguments and results as :func:`run_steps`.
-    """
-    return _bind(run_steps, args)
-
-
 def bind_run_loop(*args):
-    """:func:`run_loop` compiled for the types of ``args``, as :func:`bind_run_steps`.
+    """:func:`run_loop` compiled for the types of ``args``, callable without numba's dispatch
+    (the loop of :func:`loop_for` the arguments' train and options).
 
-    The cheapest call per chunk: no workspace to allocate, and no reference counting of the
+    numba types every argument of every call, recursively through the bundles (about 60
+    arrays for a train), which costs more than a short chunk's physics; the returned callable
+    skips that. Call it only with arguments of the same types (the same bundles, arrays of the
+    same dtype, dimension and C layout). The cheapest call per chunk: no workspace to allocate, and no reference counting of the
     arguments' arrays (about 90 with the workspace; counted, they cost twice as much).
 
     Parameters
@@ -520,15 +505,75 @@ def bind_run_loop(*args):
     callable
         Same arguments and results as :func:`run_loop`.
     """
-    return _bind(run_loop, args)
+    return _bind(loop_for(args[4], args[6], args[10]), args)
+
+
+@jit_step_inner
+def _no_local_steps(h, t, hs, hp, newton_failed, model, state, ws, s, u, stuck, options,
+                    stats):
+    """:func:`_refine_all` of a train that never sub-steps a part of itself: no window holds
+    (the whole train retries shorter)."""
+    return -1.0
+
+
+#: The brake models' ``advance`` by model ID.
+_ADVANCE = {m.ID: m.advance for m in brakes.MODELS.values()}
+#: :func:`run_loop` specialised by :func:`loop_for`, by (brake model ID, local steps).
+_LOOPS: dict = {}
+
+
+def loop_for(model, state, options):
+    """:func:`run_loop` specialised for a train: its brake model's ``advance`` called
+    directly, and local time stepping compiled in only where it can run.
+
+    The general loop compiles every registered brake model and the local steps into itself;
+    each specialisation compiles only what its runs use (a third of the first run's compile
+    time for a short train) and has its own disk cache.
+
+    Parameters
+    ----------
+    model : TrainModel
+    state : KinematicState
+    options : Options
+
+    Returns
+    -------
+    numba dispatcher
+        Same arguments and results as :func:`run_loop`.
+    """
+    local = bool(options.local_steps and options.tolerance_m_s > 0.0
+                 and state.x_m.shape[0] >= LOCAL_MIN_VEHICLES)
+    return _loop(int(model.brakes.model), local)
+
+
+def _loop(brake_model: int, local: bool):
+    """:func:`loop_for` by brake model ID and whether local steps can run."""
+    key = (brake_model, local)
+    loop = _LOOPS.get(key)
+    if loop is not None:
+        return loop
+    if not HAVE_NUMBA:  # pragma: no cover - plain Python compiles nothing it does not run
+        loop = _LOOPS[key] = run_loop
+        return loop
+    fn = run_loop.py_func
+    names = dict(fn.__globals__, advance_brakes=_ADVANCE[brake_model],
+                 refine_all=_refine_all if local else _no_local_steps)
+    copy = types.FunctionType(fn.__code__, names, fn.__name__, fn.__defaults__,
+                              fn.__closure__)
+    copy.__qualname__ = f"run_loop_brakes{brake_model}{'_local' if local else ''}"
+    copy.__module__, copy.__doc__ = fn.__module__, fn.__doc__
+    loop = jit_step(copy)
+    brakes.refresh_stale_cache(loop, brakes.SOURCES_STAMP)
+    _LOOPS[key] = loop
+    return loop
 
 
 def _bind(fn, args):
-    """``fn`` compiled for the types of ``args`` (see :func:`bind_run_steps`)."""
+    """``fn`` compiled for the types of ``args`` (see :func:`bind_run_loop`)."""
     if not HAVE_NUMBA:  # pragma: no cover - plain Python has no dispatch to skip
         return fn
     key = _layout_key(args)
-    key = None if key is None else (fn.__name__, key)
+    key = None if key is None else (fn.py_func.__qualname__, key)
     bound = _BOUND.get(key) if key is not None else None
     if bound is None:
         bound = fn.compile(tuple(fn.typeof_pyval(a) for a in args))
@@ -537,7 +582,7 @@ def _bind(fn, args):
     return bound
 
 
-#: :func:`bind_run_steps` and :func:`bind_run_loop` by function and the layout of the
+#: :func:`bind_run_loop` by function and the layout of the
 #: arguments (numba types them slowly: ~1 ms).
 _BOUND: dict = {}
 

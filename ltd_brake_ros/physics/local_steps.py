@@ -8,7 +8,7 @@ import math
 from . import brakes
 from . import couplers
 from .brakes import friction
-from .equations import jit_inline, jit_step
+from .equations import jit_inline, jit_step_inner
 from .bundles import NEWTON_FAILED, NOT_FINITE, OUT_OF_RANGE, _Scratch, _Step, _Work
 from .step_control import (MIN_STEP_FRACTION, NEWTON_SHRINK, _bdf2, _error_ratio, _milne,
                            _next_step, _record_coupler, _step_factor, _substep)
@@ -72,7 +72,7 @@ UNCONVERGED_ERROR = 2.0
 PRESCRIBED_MASS_KG = 1e30
 
 
-@jit_step
+@jit_step_inner
 def _vehicle_errors(u, v, vp, a, stuck, stuck0, hs, hp, tolerance, out):
     """Each vehicle's error estimate over the tolerance, the terms of :func:`_error_ratio`
     (into ``out``)."""
@@ -89,7 +89,7 @@ def _vehicle_errors(u, v, vp, a, stuck, stuck0, hs, hp, tolerance, out):
 LOCAL_TARGET_SHARE = 0.03
 
 
-@jit_step
+@jit_step_inner
 def _largest(values, k, top):
     """The ``k``-th largest of ``values`` (``top``: work array of at least ``k`` entries)."""
     filled = 0
@@ -108,7 +108,7 @@ def _largest(values, k, top):
     return top[filled - 1]
 
 
-@jit_step
+@jit_step_inner
 def _find_windows(err, v, u, band, windows, max_vehicles):
     """Windows of vehicles to sub-step: those whose ``err`` exceeds 1, with
     :data:`LOCAL_MARGIN` more on each side, ended at couplers outside the band (at most
@@ -169,7 +169,7 @@ def _hermite(x0, v0, x1, v1, h, s):
     return x, v
 
 
-@jit_step
+@jit_step_inner
 def _copy_records(a, b, draft, t_draft, buff, t_buff, beyond, t_out, t_beyond, draft_to,
                   t_draft_to, buff_to, t_buff_to, beyond_to, t_out_to, t_beyond_to):
     """Copy couplers a to b - 1's peaks and excursions (:func:`_record_coupler`'s arrays)."""
@@ -183,7 +183,7 @@ def _copy_records(a, b, draft, t_draft, buff, t_buff, beyond, t_out, t_beyond, d
         t_beyond_to[g] = t_beyond[g]
 
 
-@jit_step
+@jit_step_inner
 def _refine(lo, hi, h, tc, hs, hp, first_factor, model, state, ws, s, u, options, stats):
     """Sub-step vehicles ``lo`` to ``hi`` alone over the step [tc, tc + hs] the whole train
     has just tried (speeds ``u``, positions ``s.xhat + s.bh * u``), into ``ws.local``.
@@ -361,7 +361,7 @@ def _refine(lo, hi, h, tc, hs, hp, first_factor, model, state, ws, s, u, options
     return result
 
 
-@jit_step
+@jit_step_inner
 def _commit(lo, hi, state, ws, u, stuck1):
     """Put window ``lo``-``hi``'s sub-stepped result into the whole train's step (its speeds,
     and positions, accelerations, brake and coupler forces as the accept pass derives them),
@@ -385,7 +385,7 @@ def _commit(lo, hi, state, ws, u, stuck1):
                   state.out_of_range_time_s, state.beyond_range_time_s)
 
 
-@jit_step
+@jit_step_inner
 def _refine_all(h, tc, hs, hp, unconverged, model, state, ws, s, u, stuck1, options, stats):
     """Local time stepping of a rejected step: sub-step only the windows of vehicles whose
     estimate exceeds the tolerance (:func:`_find_windows`, :func:`_refine`) and keep the

@@ -10,7 +10,7 @@ from . import couplers
 from .brakes import adhesion
 from .brakes import friction
 from .constants import KMH_PER_MS
-from .equations import jit_inline, jit_step
+from .equations import jit_inline, jit_step_inner
 from .bundles import NEWTON_FAILED, NOT_FINITE, OK
 
 
@@ -38,7 +38,7 @@ def _retarding(i, speed, res_a, rcurve, resist, kind, fa_scale, adh, weight):
 FAST_ITERATIONS = 4
 
 
-@jit_step
+@jit_step_inner
 def _slope(step, u, du, ut, s, cp, fr_arrays, trial):
     """Directional derivative g(u + step*du) . du of the step's potential."""
     for i in range(u.shape[0]):
@@ -51,7 +51,7 @@ def _slope(step, u, du, ut, s, cp, fr_arrays, trial):
     return acc
 
 
-@jit_step
+@jit_step_inner
 def _line_search(u, du, ut, s, cp, fr_arrays, trial):
     """Step length minimising the step's convex potential along du (root of its slope).
 
@@ -86,7 +86,7 @@ def _line_search(u, du, ut, s, cp, fr_arrays, trial):
     return lo if lo > 0.0 else hi
 
 
-@jit_step
+@jit_step_inner
 def _residual(u, s, cp, fr_arrays, w):
     """Residual g(u) of the implicit step and the pieces of its Jacobian (into ``w``).
 
@@ -149,7 +149,7 @@ def _residual(u, s, cp, fr_arrays, w):
     return converged
 
 
-@jit_step
+@jit_step_inner
 def _all_finite(a):
     """True when every element of ``a`` is finite."""
     for value in a:
@@ -158,7 +158,7 @@ def _all_finite(a):
     return True
 
 
-@jit_step
+@jit_step_inner
 def _solve_tridiagonal(dvec, cj, g, dwork, du):
     """Solve J du = -g, J = diag(dvec) + sum over couplers of cj * (e_j - e_j+1)(e_j - e_j+1)^T.
 
@@ -202,7 +202,7 @@ def _solve_tridiagonal(dvec, cj, g, dwork, du):
             du[j] = (du[j] + cj[j - 1] * du[j - 1]) * dwork[j]
 
 
-@jit_step
+@jit_step_inner
 def _newton(u, s, cp, fr_arrays, w, scratch, max_iter, stats):
     """Solve the step's equations for the new speeds ``u`` (in place) by Newton's method.
 

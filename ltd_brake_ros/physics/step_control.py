@@ -4,7 +4,7 @@ against the quadratic predictor, the step-size controller, and each coupler's ru
 from __future__ import annotations
 
 from . import brakes
-from .equations import jit, jit_inline, jit_step
+from .equations import jit_inline, jit_inner, jit_step_inner
 
 
 @jit_inline
@@ -48,7 +48,7 @@ NEWTON_SHRINK = 0.25
 GROWS_SURELY = 0.7
 
 
-@jit
+@jit_inner
 def _step_factor(ratio, order, rejected, after_rejection):
     """Factor on the step just tried that gives the next one (step-size controller).
 
@@ -86,7 +86,7 @@ def _step_factor(ratio, order, rejected, after_rejection):
     return grow
 
 
-@jit
+@jit_inner
 def _next_step(hs, h_max, ratio, order, after_rejection):
     """The step proposed after an accepted one of ``hs`` seconds: ``hs`` times
     :func:`_step_factor`, at most ``h_max`` [s].
@@ -109,7 +109,7 @@ def _milne(hs, hp):
     return 0.5, 0.0
 
 
-@jit_step
+@jit_step_inner
 def _error_ratio(u, v, vp, a, stuck, stuck0, hs, hp, tolerance):
     """Largest local error estimate of the new speeds over the tolerance (Milne's device).
 

@@ -73,7 +73,7 @@ from ..plant.recorder import Recorder  # noqa: E402
 from ..plant.run import (RUN_INPUT_PARAMETERS, PlantRun, check_run_inputs,  # noqa: E402
                          reset_run)
 from ..plant.runner import PlantRunner  # noqa: E402
-from ..simulator import kernels_cached  # noqa: E402
+from ..simulator import compile_notice  # noqa: E402
 from ..recording.bag import message_class, type_name  # noqa: E402
 from ..recording.metadata import model_warnings, train_description  # noqa: E402
 from ..recording.plant_topics import (ARRAY_TOPICS, CLOCK_TOPIC, COMMAND_TOPICS,  # noqa: E402
@@ -136,13 +136,12 @@ class SimNode(Node):
             raise StartupError("clock", "follow cannot be combined with lockstep:=true: the "
                                "plant publishing /clock steps this one")
         log = self.get_logger()
-        cached = kernels_cached()
-        if cached is False:
-            log.info("compiling the simulation kernels (first start only; about a minute on "
-                     "two cores)")
+        notice = compile_notice()  # the paper's brake model, a train of fewer than 64 vehicles
+        if notice:
+            log.info(notice)
         started = time.monotonic()
         self.plant_run = PlantRun.build(p)
-        if cached is False:
+        if notice:
             log.info(f"compiled the simulation kernels in {time.monotonic() - started:.0f} s")
         self._taps: list[Tap] = []
         # after the kernel is loaded, while discovery finds the other nodes

@@ -83,7 +83,8 @@ def _worker_setup() -> tuple:
 
     from ltd_brake_ros.physics import kernel
 
-    return dask.config.get("distributed.worker.profile.enabled"), len(kernel.run_loop.overloads)
+    return (dask.config.get("distributed.worker.profile.enabled"),
+            sum(len(loop.overloads) for loop in kernel._LOOPS.values()))
 
 
 def test_local_cluster_workers_load_the_kernel_before_the_first_batch():

@@ -19,7 +19,7 @@ def test_kernels_are_known_to_be_cached_after_a_run():
 def test_simulate_says_when_it_compiles(monkeypatch, capsys, cached, says):
     from ltd_brake_ros import simulator
 
-    monkeypatch.setattr(simulator, "kernels_cached", lambda: cached)
+    monkeypatch.setattr(simulator, "kernels_cached", lambda *a: cached)
     assert main(["simulate", "--scenario", "1"]) == 0
     err = capsys.readouterr().err
     assert ("compiling the simulation kernels (first run only" in err) is says
@@ -30,7 +30,7 @@ def test_the_python_api_says_when_it_compiles(monkeypatch, capsys):
     import ltd_brake_ros as ltd
     from ltd_brake_ros import simulator
 
-    monkeypatch.setattr(simulator, "kernels_cached", lambda: False)
+    monkeypatch.setattr(simulator, "kernels_cached", lambda *a: False)
     ltd.emergency_stop(ltd.load_consist("scenario_1"), 40.0)
     out = capsys.readouterr()
     assert "compiling the simulation kernels (first run only" in out.out + out.err

@@ -71,12 +71,33 @@ def test_functions_without_a_disk_cache_are_left_alone():
     assert refresh_stale_cache(len) is False
 
 
-def test_the_kernel_step_loop_carries_the_stamp_of_the_models_it_compiles_in():
+def test_the_kernel_step_loops_carry_the_stamp_of_the_models_they_compile_in():
     from pathlib import Path
 
     from ltd_brake_ros.physics import brakes, kernel
 
-    cache_path = getattr(getattr(kernel.run_steps, "_cache", None), "cache_path", None)
-    assert cache_path is not None, "run_steps must be compiled with a disk cache"
-    stamp = Path(cache_path) / "kernel.run_steps.sources"
+    for loop in (kernel.run_loop, kernel._loop(0, False), kernel._loop(2, True)):
+        cache_path = getattr(getattr(loop, "_cache", None), "cache_path", None)
+        assert cache_path is not None, f"{loop} must be compiled with a disk cache"
+        stamp = Path(cache_path) / f"kernel.{loop.py_func.__qualname__}.sources"
+        assert stamp.read_text() == brakes.SOURCES_STAMP
+
+
+def test_a_python_call_of_an_inner_function_compiles_a_stamped_twin():
+    """Inner functions have no entry point for Python: a call from Python goes to a twin
+    compiled apart, whose cache is checked against the sources like every other."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from ltd_brake_ros.physics import brakes, step_control
+
+    ratio = step_control._error_ratio
+    u = np.array([1.0, 2.0])
+    got = ratio(u, u.copy(), u.copy(), np.zeros(2), np.zeros(2, bool), np.zeros(2, bool), 0.01,
+                0.01, 1e-3)
+    assert got == 0.0  # no change: no error
+    twin = ratio._twin
+    assert twin.py_func.__qualname__ == "_error_ratio_from_python"
+    stamp = Path(twin._cache.cache_path) / "step_control._error_ratio_from_python.sources"
     assert stamp.read_text() == brakes.SOURCES_STAMP

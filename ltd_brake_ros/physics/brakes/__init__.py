@@ -48,8 +48,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .. import parameters
-from ..equations import jit_step
+from .. import equations, parameters
+from ..equations import jit_step_inner
 from . import friction, linear_ramp, thermal, uic_empirical, uic_pipe
 from .base import EMERGENCY, SERVICE, BrakeArrays, BrakeState, CommandEvents, CompileError
 
@@ -68,7 +68,7 @@ MODELS = {m.NAME: m for m in (
 DEFAULT_MODEL = uic_empirical.NAME
 
 
-@jit_step
+@jit_step_inner
 def advance(arrays, state, events, t0, t1):
     """Advance the block forces of the model ``arrays.model`` from t0 to t1 [s] (in place)."""
     if arrays.model == uic_empirical.ID:
@@ -172,6 +172,8 @@ def refresh_stale_caches(namespace: dict, stamp: str | None = None) -> int:
 
 #: :func:`sources_stamp` of this installation, computed once at import.
 SOURCES_STAMP = sources_stamp()
+# a compiled function's twin for calls from Python compiles the same sources
+equations.on_python_twin(lambda twin: refresh_stale_cache(twin, SOURCES_STAMP))
 for _namespace in (globals(), *(vars(m) for m in MODELS.values())):
     refresh_stale_caches(_namespace, SOURCES_STAMP)
 del _namespace

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..equations import jit_step
+from ..equations import jit_step_inner
 from ..parameters import Fittable, parameter
 from .base import BrakeArrays, released_state, vent_delay_s
 
@@ -94,14 +94,14 @@ def initial_state(arrays: BrakeArrays):
     return released_state(arrays.delay_s.shape[0])
 
 
-@jit_step
+@jit_step_inner
 def _ramp(force, target, dt, rate_apply, rate_release):
     if target > force:
         return min(target, force + rate_apply * dt)
     return max(target, force - rate_release * dt)
 
 
-@jit_step
+@jit_step_inner
 def advance(arrays, state, events, t0, t1):
     """Advance every vehicle's block force exactly from t0 to t1 [s] (state updated in place)."""
     fb, lvl, lkind, nxt = state.force_N, state.level, state.level_kind, state.next_event

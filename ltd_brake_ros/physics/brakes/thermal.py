@@ -43,7 +43,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..equations import jit_inline, jit_step
+from ..equations import jit_inline, jit_step_inner
 from ..parameters import parameter
 
 __all__ = ["Params", "Peaks", "ThermalArrays", "advance", "compile", "current",
@@ -269,7 +269,7 @@ def _step(arrays, i, power_W, speed_m_s, applied, dt, t_block, t_wheel):
     return arrays.ambient_K + x1 + y1, arrays.ambient_K + x2 + y2
 
 
-@jit_step
+@jit_step_inner
 def current(arrays, state, block_force_N, t, out_block, out_wheel):
     """Block and wheel temperature of every vehicle at time ``t`` [s], the brake work since
     the last update taken in (into ``out_block``, ``out_wheel`` [K]; the state untouched).
@@ -298,7 +298,7 @@ def current(arrays, state, block_force_N, t, out_block, out_wheel):
                 state.heat_distance_m[i] / dt, block_force_N[i] > 0.0, dt, tb[i], tw[i])
 
 
-@jit_step
+@jit_step_inner
 def advance(arrays, state, block_force_N, t):
     """Advance the temperatures to time ``t`` [s] over the interval since the last update,
     with its brake work and distance, and restart the interval (the kernel's call, in place).

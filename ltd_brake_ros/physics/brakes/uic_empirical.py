@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..equations import jit, jit_inline, jit_step
+from ..equations import jit, jit_inline, jit_step_inner
 from ..parameters import Fittable, parameter
 from .base import EMERGENCY, BrakeArrays, CompileError, released_state, vent_delay_s
 
@@ -165,7 +165,7 @@ def _tau(force, target, tau_apply, tau_release):
     return tau_apply if target > force else tau_release
 
 
-@jit_step
+@jit_step_inner
 def advance(arrays, state, events, t0, t1):
     """Advance every vehicle's block force exactly from t0 to t1 [s] (state updated in place).
 

@@ -68,7 +68,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..equations import centre_offsets_m, jit, jit_step
+from ..equations import centre_offsets_m, jit_inner, jit_step_inner
 from ..parameters import Fittable, parameter
 from .base import (EMERGENCY, OVERCHARGE, BrakeArrays, BrakeState, CompileError,
                    released_state)
@@ -505,7 +505,7 @@ def initial_state(arrays: BrakeArrays) -> BrakeState:
 # --------------------------------------------------------------------------- equations
 
 
-@jit
+@jit_inner
 def orifice(p_up, p_down, area):
     """Mass flow through an orifice per unit c_choked / sqrt(R T), and its derivatives.
 
@@ -543,12 +543,12 @@ def orifice(p_up, p_down, area):
     return area * p_up * phi, area * (phi - r * dphi), area * dphi
 
 
-@jit
+@jit_inner
 def _clip01(x):
     return 0.0 if x < 0.0 else (1.0 if x > 1.0 else x)
 
 
-@jit
+@jit_inner
 def _valve_branch(p, coef, mode, em_open, per):
     """Outflow through a driver's brake valve in position ``mode`` at pipe pressure ``p`` and
     equalising-reservoir pressure ``per`` [Pa abs], and its derivative, in orifice units (see
@@ -570,7 +570,7 @@ def _valve_branch(p, coef, mode, em_open, per):
     return 0.0, 0.0
 
 
-@jit
+@jit_inner
 def _distributor_branch(i, p, coef, extra):
     """Outflow from pipe volume i into its distributor's accelerator vent, quick-service
     chamber and auxiliary reservoir at pipe pressure ``p`` [Pa abs], and its derivative, in
@@ -592,7 +592,7 @@ def _distributor_branch(i, p, coef, extra):
     return q, dq
 
 
-@jit_step
+@jit_step_inner
 def _pipe_step(coef, extra, dt, a, b, c, rhs, work):
     """One backward-Euler step of the pipe pressures and face flows (in ``extra``)."""
     n = coef.shape[0]
@@ -659,7 +659,7 @@ def _pipe_step(coef, extra, dt, a, b, c, rhs, work):
         extra[f, X_M] += work[f] * (rhs[f] - rhs[f + 1])
 
 
-@jit
+@jit_inner
 def _chamber_fill(p0, p, pc, area, volume, dt, rt, kflow):
     """A chamber at ``pc`` [Pa abs] filled from the pipe (``p0`` -> ``p`` over the step) through
     ``area`` [m2] into ``volume`` [m3]: its new pressure and whether it has equalised (within
@@ -672,7 +672,7 @@ def _chamber_fill(p0, p, pc, area, volume, dt, rt, kflow):
     return pc, False
 
 
-@jit_step
+@jit_step_inner
 def _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold):
     """Advance the pipe, the driver's valve and every distributor from grid point k to k + 1."""
     coef, extra = arrays.coef, state.extra
@@ -826,7 +826,7 @@ def _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold):
         state.force_N[i] = arrays.force_max_N[i] * pc / p_cmax
 
 
-@jit_step
+@jit_step_inner
 def advance(arrays, state, events, t0, t1):
     """Advance pipe and distributors on their time grid up to t1 [s] (state updated in place).
 
