@@ -12,8 +12,9 @@ try:  # pragma: no cover - exercised implicitly
     from numba import njit
 
     def jit(fn):
-        """Compile ``fn`` with numba (cached on disk)."""
-        return njit(cache=True, nogil=True)(fn)
+        """Compile ``fn`` with numba (cached on disk; without the C entry point, which only a
+        ``cfunc`` caller would use and which costs compile time)."""
+        return njit(cache=True, nogil=True, no_cfunc_wrapper=True)(fn)
 
     def jit_inline(fn):
         """Compile ``fn`` with numba, inlined into compiled callers.
@@ -21,7 +22,7 @@ try:  # pragma: no cover - exercised implicitly
         For small functions called in the innermost loops with bundles (NamedTuples of
         arrays): a call that is not inlined passes every array of the bundle.
         """
-        return njit(cache=True, nogil=True, inline="always")(fn)
+        return njit(cache=True, nogil=True, inline="always", no_cfunc_wrapper=True)(fn)
 
     def jit_step(fn):
         """Compile ``fn`` with numba without reference counting of its arrays.
@@ -31,7 +32,7 @@ try:  # pragma: no cover - exercised implicitly
         every array passed in and out of each call (an atomic operation each), which costs
         more than the arithmetic of a short train. Such a function must not create arrays.
         """
-        return njit(cache=True, nogil=True, _nrt=False)(fn)
+        return njit(cache=True, nogil=True, _nrt=False, no_cfunc_wrapper=True)(fn)
 
     def jit_vector(fn):
         """:func:`jit_step` with IEEE division (x / 0 gives inf or NaN instead of raising).
@@ -39,7 +40,8 @@ try:  # pragma: no cover - exercised implicitly
         For loops the compiler should vectorise: a zero check before each division keeps it
         from doing so. Only for divisions whose divisor cannot be zero.
         """
-        return njit(cache=True, nogil=True, _nrt=False, error_model="numpy")(fn)
+        return njit(cache=True, nogil=True, _nrt=False, error_model="numpy",
+                    no_cfunc_wrapper=True)(fn)
 
     def jit_inner(fn):
         """:func:`jit` for a function that compiled code calls (see :class:`_Inner`)."""
@@ -85,7 +87,8 @@ try:  # pragma: no cover - exercised implicitly
                                            fn.__defaults__, fn.__closure__)
                 copy.__qualname__ = fn.__qualname__ + "_from_python"
                 copy.__module__, copy.__doc__ = fn.__module__, fn.__doc__
-                twin = njit(cache=True, nogil=True, **self._twin_options)(copy)
+                twin = njit(cache=True, nogil=True, no_cfunc_wrapper=True,
+                            **self._twin_options)(copy)
                 if _Inner.on_twin is not None:
                     _Inner.on_twin(twin)
                 self._twin = twin

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import parameters
-from ..equations import jit_inline, lut_segment_near
+from ..equations import jit_inline, jit_inner, lut_segment_near
 from ..parameters import REQUIRED, CompileError, Fittable, parameter
 from .base import MAX_DEFLECTION_M, MAX_FORCE_N, MAX_STIFFNESS_N_M, CouplerArrays
 
@@ -345,7 +345,7 @@ def force_near(table, coef, defl_m, rate_m_s, segment):
     return f, kd, kr, seg
 
 
-@jit_inline
+@jit_inner
 def eq3(table, inv_v_th, defl_m, rate_m_s, guess):
     """Coupler force with hysteresis, Eq. 3, and its partial derivatives.
 
