@@ -645,7 +645,7 @@ def analyse(path, namespace: str | None = None) -> RunReport:
             travel_beyond_mm=watch.beyond_mm if watch._x0 is not None else None,
             travel_time_s=watch.beyond_t, travel_speed_kmh=watch.beyond_kmh,
             holding_reason="not assessed from a recording: it holds no brake state at rest",
-            first_time_s=watch.first_time_s)
+            first_time_s=watch.first_time_s, wheel_temperature=heat_watch.peak.get("wheel"))
     return rep
 
 

@@ -347,6 +347,8 @@ def limits_metadata(limits: TrainLimits) -> dict:
             "rotating_mass_t": (limits.rotating_mass_kg / 1e3).tolist(),
             "coupler_travel_mm": [None if not math.isfinite(x) else x
                                   for x in limits.travel_mm],
+            "wheel_temperature_K": [None if not math.isfinite(x) else x
+                                    for x in limits.wheel_temperature_K.tolist()],
             "origin": dict(limits.origin)}
 
 
@@ -403,12 +405,15 @@ def limits_from_metadata(meta, n_vehicles: int) -> TrainLimits | None:
             if not (lo < 0.0 < hi):
                 raise ValueError("coupler_travel_mm")
             travel = (lo, hi)
+        # recordings made before the wheels' limit was stored: the criterion is not assessed
+        hot = arr("wheel_temperature_K", n_vehicles) if "wheel_temperature_K" in meta \
+            else np.zeros(0)
         return TrainLimits(arr("draft_strength_kN", nc, 1e3), arr("buff_strength_kN", nc, 1e3),
                            arr("endurable_lcf_kN", nc, 1e3), arr("adhesion_limit", n_vehicles),
                            arr("mass_t", n_vehicles, 1e3 * G),
                            {str(k): str(v) for k, v in origin.items()}
                            if isinstance(origin, dict) else {}, braked, blocks, full, rot,
-                           travel)
+                           travel, hot)
     except (KeyError, TypeError, ValueError, OverflowError):
         return None
 

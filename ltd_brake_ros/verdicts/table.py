@@ -387,8 +387,8 @@ def _temperature_row(limits: TrainLimits, wheel_temperature, first) -> Criterion
     n = limits.adhesion_limit.size
     if wheel_temperature is None or n == 0:
         return Criterion(name, False, math.inf, math.inf,
-                         "not assessed: judged by the simulator only (a recording's report "
-                         "does not read the temperature topics)", 0.0, 0, 0.0)
+                         "not assessed: no wheel temperatures (a recording without the "
+                         "vehicles/wheel_temperature topic)", 0.0, 0, 0.0)
     peak, when = (np.asarray(a, float) for a in wheel_temperature)
     lim = limits.of(name)
     assessed = np.isfinite(peak) & np.isfinite(lim)

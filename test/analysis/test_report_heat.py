@@ -15,7 +15,8 @@ def test_the_report_finds_the_peaks_the_run_printed(tmp_path, capsys):
     capsys.readouterr()
     assert main(["report", str(tmp_path / "rec"), "--json", "--out",
                  str(tmp_path / "plots")]) == 0
-    heat = json.loads(capsys.readouterr().out)["brake_heat"]
+    report = json.loads(capsys.readouterr().out)
+    heat = report["brake_heat"]
     # the recording samples every 0.1 s and the model moves at most a few kelvin per second
     # at the peak: the recorded peak is the printed one within 1 K, on the same vehicle
     for part in ("block", "wheel"):
@@ -24,4 +25,10 @@ def test_the_report_finds_the_peaks_the_run_printed(tmp_path, capsys):
         assert heat[f"peak_{part}_temperature_vehicle"] == \
             run[f"peak_{part}_temperature_vehicle"]
     assert heat["ambient_temperature_K"] == run["ambient_temperature_K"]
+    # and judges them as the run did: the same status, the peak within 1 K on the same vehicle
+    ours, theirs = ({c["criterion"]: c for c in r["verdicts"]["criteria"]}["wheel_temperature"]
+                    for r in (report, run))
+    assert ours["status"] == theirs["status"] == "PASS"
+    assert ours["worst_K"] == pytest.approx(theirs["worst_K"], abs=1.0)
+    assert ours["worst_vehicle"] == theirs["worst_vehicle"]
     assert (tmp_path / "plots" / "brake_temperature.png").stat().st_size > 10_000
