@@ -79,9 +79,8 @@ def kernels_cached(brake_model: str | None = None, local_steps: bool = False) ->
     brake_model : str, optional
         Name of the run's brake model (default: the paper's).
     local_steps : bool, optional
-        The run can sub-step part of the train (a train of
-        :data:`~ltd_brake_ros.physics.kernel.LOCAL_MIN_VEHICLES` vehicles or more, with error
-        control).
+        The run can sub-step part of the train
+        (:func:`~ltd_brake_ros.physics.kernel.local_steps_run`).
 
     Returns
     -------
@@ -89,9 +88,7 @@ def kernels_cached(brake_model: str | None = None, local_steps: bool = False) ->
         False: the next simulator compiles it (seconds, once per installation, machine and
         brake model); True: it loads it; None: numba does not say.
     """
-    from .physics import brakes
-
-    model = brakes.MODELS.get(brake_model or brakes.DEFAULT_MODEL)
+    model = brakes_module.MODELS.get(brake_model or brakes_module.DEFAULT_MODEL)
     if model is None:
         return None
     try:
@@ -115,7 +112,8 @@ def compile_notice(consist: Consist | None = None, params: BrakeParams | None = 
     Parameters
     ----------
     consist : Consist, optional
-        The run's train (its length decides whether local time stepping is compiled in).
+        The run's train (its length decides whether local time stepping is compiled in, with
+        the simulator's default options).
     params : BrakeParams, optional
         The run's brake parameters (default: the paper's model).
 
@@ -126,7 +124,7 @@ def compile_notice(consist: Consist | None = None, params: BrakeParams | None = 
     """
     model = None if params is None else brakes_module.model_of(
         getattr(params, "pneumatic", params)).NAME
-    local = consist is not None and len(consist.vehicles) >= kernel.LOCAL_MIN_VEHICLES
+    local = consist is not None and kernel.local_steps_run(len(consist.vehicles))
     if kernels_cached(model, local) is not False:
         return None
     return (f"compiling the simulation kernels (first run only; about {COMPILE_S} s on two "

@@ -6,7 +6,19 @@ the name says otherwise (``_kmh``, ``_kN``, ``_t``).
 """
 from __future__ import annotations
 
+from types import FunctionType as _FunctionType
+
 import numpy as np
+
+
+def renamed_copy(fn, qualname: str, **names):
+    """A copy of the Python function ``fn`` under another qualified name (numba keeps one disk
+    cache per name), with the globals ``names`` replaced."""
+    copy = _FunctionType(fn.__code__, dict(fn.__globals__, **names) if names
+                         else fn.__globals__, fn.__name__, fn.__defaults__, fn.__closure__)
+    copy.__qualname__, copy.__module__, copy.__doc__ = qualname, fn.__module__, fn.__doc__
+    return copy
+
 
 try:  # pragma: no cover - exercised implicitly
     from numba import njit
@@ -80,15 +92,10 @@ try:  # pragma: no cover - exercised implicitly
         def __call__(self, *args, **kwargs):
             twin = self.__dict__.get("_twin")
             if twin is None:
-                import types as _types
-
                 fn = self.py_func
-                copy = _types.FunctionType(fn.__code__, fn.__globals__, fn.__name__,
-                                           fn.__defaults__, fn.__closure__)
-                copy.__qualname__ = fn.__qualname__ + "_from_python"
-                copy.__module__, copy.__doc__ = fn.__module__, fn.__doc__
                 twin = njit(cache=True, nogil=True, no_cfunc_wrapper=True,
-                            **self._twin_options)(copy)
+                            **self._twin_options)(
+                    renamed_copy(fn, fn.__qualname__ + "_from_python"))
                 if _Inner.on_twin is not None:
                     _Inner.on_twin(twin)
                 self._twin = twin

@@ -44,13 +44,12 @@ in place), a :data:`STATS_DTYPE` record of counters and :class:`Options`.
 from __future__ import annotations
 
 import math
-import types
 
 import numpy as np
 
 from . import brakes
 from .brakes import adhesion, friction, thermal
-from .equations import (HAVE_NUMBA, jit_step, jit_step_inner, lut_segment,
+from .equations import (HAVE_NUMBA, jit_step, jit_step_inner, lut_segment, renamed_copy,
                         resistance_coefficients)
 from .bundles import (ACCEL_VALID, ADHESION_SPLIT_SPEED_M_S, CURVE, DEFAULT_NEWTON_RTOL,
                       DEFAULT_TOLERANCE_M_S, FULL_APPLICATION, GRADIENT, Inputs, KinematicState,
@@ -76,8 +75,8 @@ __all__ = ["ACCEL_VALID", "ADHESION_SPLIT_SPEED_M_S", "CURVE", "DEFAULT_NEWTON_R
            "LOCAL_MIN_VEHICLES", "MEAN_ADHESION_MIN_SPEED_M_S", "NEWTON_FAILED", "NEXT_STEP",
            "NOT_FINITE", "OK", "OUT_OF_RANGE", "Options", "SECTION_START", "STATS_DTYPE",
            "STOPPED", "Stats", "TrackArrays", "TractionArrays", "TrainArrays", "TrainModel",
-           "advance_traction", "bind_run_loop", "loop_for", "new_stats", "new_workspace",
-           "read_stats", "run_loop", "run_steps", "track_forces"]
+           "advance_traction", "bind_run_loop", "local_steps_run", "loop_for", "new_stats",
+           "new_workspace", "read_stats", "run_loop", "run_steps", "track_forces"]
 
 
 @jit_step_inner
@@ -386,7 +385,7 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
             if reject and refine:
                 # sub-step only the vehicles that need it, if they are few
                 outside = refine_all(h, tc, hs, hp, code == NEWTON_FAILED, model, state, ws, s,
-                                      u, stuck1, options, stats)
+                                     u, stuck1, options, stats)
                 if outside >= 0.0:
                     reject = False
                     code = OK
@@ -492,8 +491,9 @@ def bind_run_loop(*args):
     numba types every argument of every call, recursively through the bundles (about 60
     arrays for a train), which costs more than a short chunk's physics; the returned callable
     skips that. Call it only with arguments of the same types (the same bundles, arrays of the
-    same dtype, dimension and C layout). The cheapest call per chunk: no workspace to allocate, and no reference counting of the
-    arguments' arrays (about 90 with the workspace; counted, they cost twice as much).
+    same dtype, dimension and C layout). The cheapest call per chunk: no workspace to
+    allocate, and no reference counting of the arguments' arrays (about 90 with the
+    workspace; counted, they cost twice as much).
 
     Parameters
     ----------
@@ -541,9 +541,27 @@ def loop_for(model, state, options):
     numba dispatcher
         Same arguments and results as :func:`run_loop`.
     """
-    local = bool(options.local_steps and options.tolerance_m_s > 0.0
-                 and state.x_m.shape[0] >= LOCAL_MIN_VEHICLES)
-    return _loop(int(model.brakes.model), local)
+    return _loop(int(model.brakes.model), local_steps_run(
+        state.x_m.shape[0], options.local_steps, options.tolerance_m_s))
+
+
+def local_steps_run(n_vehicles: int, local_steps: bool = True,
+                    tolerance_m_s: float = DEFAULT_TOLERANCE_M_S) -> bool:
+    """Whether a train's runs can sub-step part of the train (:func:`_refine_all`).
+
+    Parameters
+    ----------
+    n_vehicles : int
+    local_steps : bool, optional
+        :attr:`Options.local_steps`.
+    tolerance_m_s : float, optional
+        :attr:`Options.tolerance_m_s` [m/s]; 0 is fixed steps.
+
+    Returns
+    -------
+    bool
+    """
+    return bool(local_steps and tolerance_m_s > 0.0 and n_vehicles >= LOCAL_MIN_VEHICLES)
 
 
 def _loop(brake_model: int, local: bool):
@@ -555,14 +573,10 @@ def _loop(brake_model: int, local: bool):
     if not HAVE_NUMBA:  # pragma: no cover - plain Python compiles nothing it does not run
         loop = _LOOPS[key] = run_loop
         return loop
-    fn = run_loop.py_func
-    names = dict(fn.__globals__, advance_brakes=_ADVANCE[brake_model],
-                 refine_all=_refine_all if local else _no_local_steps)
-    copy = types.FunctionType(fn.__code__, names, fn.__name__, fn.__defaults__,
-                              fn.__closure__)
-    copy.__qualname__ = f"run_loop_brakes{brake_model}{'_local' if local else ''}"
-    copy.__module__, copy.__doc__ = fn.__module__, fn.__doc__
-    loop = jit_step(copy)
+    loop = jit_step(renamed_copy(
+        run_loop.py_func, f"run_loop_brakes{brake_model}{'_local' if local else ''}",
+        advance_brakes=_ADVANCE[brake_model],
+        refine_all=_refine_all if local else _no_local_steps))
     brakes.refresh_stale_cache(loop, brakes.SOURCES_STAMP)
     _LOOPS[key] = loop
     return loop
