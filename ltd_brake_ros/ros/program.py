@@ -91,8 +91,13 @@ class Signals:
             # an Interrupted raised while C code had called back into Python (numba's
             # compiler does) cannot leave the callback: Python would print it as "Exception
             # ignored"; the signal stays remembered and interruptible() raises it again
-            if not (isinstance(info.exc_type, type) and issubclass(info.exc_type, Interrupted)):
-                previous(info)
+            if isinstance(info.exc_type, type) and issubclass(info.exc_type, Interrupted):
+                return
+            # an object whose construction the signal interrupted (llvmlite's, while the
+            # kernel loads) can fail in its finalizer when the stopping program collects it
+            if self.received is not None and getattr(info.object, "__name__", "") == "__del__":
+                return
+            previous(info)
 
         sys.unraisablehook = unraisable
         return self
