@@ -389,15 +389,20 @@ class RunResult:
         return self.timeseries.to_xarray()
 
 
-def _announce_compile(consist: Consist, params: BrakeParams | None) -> None:
-    """Say on stderr that the simulation kernels compile now (first run after installing)."""
-    from .simulator import compile_notice
+def _announce_compile(**simulator_kwargs) -> None:
+    """On the first run after installing, start compiling the simulation kernels (in the
+    background while the run starts as plain Python, :mod:`~ltd_brake_ros.first_run`) and say
+    so on stderr."""
+    import sys
 
-    notice = compile_notice(consist, params)
+    from .first_run import begin
+
+    def say(line: str) -> None:
+        print(f"ltd_brake_ros: {line}", file=sys.stderr, flush=True)
+
+    notice = begin(simulator_kwargs, say)
     if notice:
-        import sys
-
-        print(f"ltd_brake_ros: {notice}", file=sys.stderr, flush=True)
+        say(notice)
 
 
 def _attrs(sim: Simulator, speed_kmh: float) -> dict:
@@ -439,7 +444,8 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
     SimulationError
         A step failed, or the train did not stop within ``max_time_s``.
     """
-    _announce_compile(consist, params)
+    _announce_compile(consist=consist, speed_kmh=speed_kmh, params=params, lut=coupler,
+                      track=track, step_s=step_s, tolerance_m_s=tolerance_m_s)
     sampler = _Sampler()
     start = time.perf_counter()
     sim = emergency_run(consist, speed_kmh, params, coupler, track, step_s=step_s,
@@ -474,7 +480,8 @@ def run_commands(consist: Consist, speed_kmh: float, commands, *,
         ``summary`` is None when the train did not stop.
     """
     script = commands if isinstance(commands, CommandScript) else load_commands(commands)
-    _announce_compile(consist, params)
+    _announce_compile(consist=consist, speed_kmh=speed_kmh, params=params, lut=coupler,
+                      track=track, step_s=step_s, tolerance_m_s=tolerance_m_s)
     sampler = _Sampler()
     start = time.perf_counter()
     sim = scripted_run(consist, speed_kmh, script, params, coupler, track, step_s=step_s,

@@ -39,8 +39,8 @@ from .physics.brakes import adhesion as adhesion_module
 from .physics.brakes import friction, thermal
 from .physics.brakes.base import EMERGENCY, OVERCHARGE, SERVICE
 from .physics.constants import KMH_PER_MS, STANDSTILL_M_S
-from .physics.equations import (centre_offsets_m, curve_resistance_N_per_kN,
-                                train_braked_weight_percent)
+from .physics.equations import (centre_offsets_m, curve_resistance_N_per_kN, is_plain,
+                                plain_now, train_braked_weight_percent)
 from .physics.kernel import Stats  # noqa: F401 (part of this module's interface)
 from .verdicts import TrainLimits, VehicleDemand, Verdicts, Watch, train_limits
 
@@ -105,17 +105,18 @@ def kernels_cached(brake_model: str | None = None, local_steps: bool = False) ->
 COMPILE_S = 15
 
 
-def compile_notice(consist: Consist | None = None, params: BrakeParams | None = None
-                   ) -> str | None:
+def compile_notice(consist: Consist | None = None, params: BrakeParams | None = None,
+                   tolerance_m_s: float = kernel.DEFAULT_TOLERANCE_M_S) -> str | None:
     """What to tell the user before a run of ``consist`` that compiles its kernels.
 
     Parameters
     ----------
     consist : Consist, optional
-        The run's train (its length decides whether local time stepping is compiled in, with
-        the simulator's default options).
+        The run's train (its length decides whether local time stepping is compiled in).
     params : BrakeParams, optional
         The run's brake parameters (default: the paper's model).
+    tolerance_m_s : float, optional
+        The run's error tolerance [m/s] (0: fixed steps, without local time stepping).
 
     Returns
     -------
@@ -124,7 +125,8 @@ def compile_notice(consist: Consist | None = None, params: BrakeParams | None = 
     """
     model = None if params is None else brakes_module.model_of(
         getattr(params, "pneumatic", params)).NAME
-    local = consist is not None and kernel.local_steps_run(len(consist.vehicles))
+    local = consist is not None and kernel.local_steps_run(len(consist.vehicles),
+                                                           tolerance_m_s=tolerance_m_s)
     if kernels_cached(model, local) is not False:
         return None
     return (f"compiling the simulation kernels (first run only; about {COMPILE_S} s on two "
@@ -278,9 +280,11 @@ class Simulator:
         self._state = self._initial_state()
         self._workspace: tuple | None = None  # (kinematics, brake state, the kernel's workspace)
         self._inputs: kernel.Inputs | None = None  # the last chunk's
-        if compiled.run_loop is None:
+        #: Simulated time advanced with the kernels as plain Python [s] (a first run whose
+        #: kernels compiled meanwhile, :mod:`~ltd_brake_ros.first_run`).
+        self.plain_python_s = 0.0
+        if compiled.run_loop is None or is_plain(compiled.run_loop) != plain_now():
             self._bind_kernel()
-            compiled.run_loop = self._run_loop
         else:  # bound for this model's arguments: the same types for every simulator of it
             self._run_loop, self._bound_model = compiled.run_loop, self.model
 
@@ -329,6 +333,7 @@ class Simulator:
         Snapshot
         """
         self._state = self._initial_state()
+        self.plain_python_s = 0.0
         return self.snapshot()
 
     def _initial_state(self) -> SimulatorState:
@@ -694,8 +699,12 @@ class Simulator:
                 or fext.dtype is not _FLOAT64 or inputs.traction_demand != st.traction_demand):
             # new inputs (the same array, changed in place, needs no new bundle)
             inputs = self._inputs = kernel.Inputs(st.traction_demand, self._external_forces())
-        if self.model is not self._bound_model:
-            self._bind_kernel()  # a model put in by hand may have other array types
+        plain_loop = is_plain(self._run_loop)
+        if self.model is not self._bound_model or plain_loop != plain_now():
+            # a model put in by hand may have other array types; plain-Python kernels give
+            # way to compiled ones when these are ready
+            self._bind_kernel()
+            plain_loop = is_plain(self._run_loop)
         ws = self._workspace
         if ws is None or ws[0] is not st.kinematics or ws[1] is not st.brakes:
             ws = self._new_workspace()
@@ -714,6 +723,8 @@ class Simulator:
                     f"arithmetic failure ({type(exc).__name__}: {exc}) in a step after "
                     f"t = {st.time_s:.4f} s (step {h:.4g} s): a force or stiffness of the "
                     "inputs is beyond what the integrator resolves") from None
+            if plain_loop:
+                self.plain_python_s += t - st.time_s
             st.time_s, st.last_step_s = t, hp
             remaining -= done
             if code == kernel.NEWTON_FAILED:
@@ -780,6 +791,8 @@ class Simulator:
         self._run_loop = kernel.bind_run_loop(*self._kernel_arguments(),
                                               self._new_workspace()[2])
         self._bound_model = self.model
+        if self.model is self._compiled.model:
+            self._compiled.run_loop = self._run_loop
 
     def _kernel_arguments(self) -> tuple:
         """Arguments of :func:`~ltd_brake_ros.physics.kernel.run_steps` for one step now."""

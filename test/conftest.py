@@ -101,6 +101,9 @@ def pytest_configure(config):
     """Isolate the session's DDS traffic before anything initialises ROS."""
     os.environ["ROS_DOMAIN_ID"] = str(_claim_domain())
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    # a first run compiles its kernels in place: a background compile would outlive its test
+    # (the tests of the background compile ask for it and wait for it)
+    os.environ["LTD_BRAKE_FIRST_RUN"] = "wait"
     for name in ("ROS_STATIC_PEERS", "ROS_LOCALHOST_ONLY", "ROS_DISCOVERY_SERVER"):
         os.environ.pop(name, None)
 

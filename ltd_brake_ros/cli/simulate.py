@@ -22,7 +22,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "stopping distance and time from it, the peak draft and buff forces with "
                     "their coupler numbers, the hottest brake blocks and wheels, the strength, "
                     "adhesion and temperature verdicts and the cost.",
-        epilog=CONVENTIONS + "\nexamples:\n  ltd-brake simulate --scenario 6\n"
+        epilog=CONVENTIONS + "\nfirst run:\n  the first run after installing starts at "
+               "once with the simulation kernels as plain Python\n  (the same numbers, "
+               "slower) while they compile in the background (about 15 s) for\n  later runs; "
+               "LTD_BRAKE_FIRST_RUN=wait compiles them before the run instead\n"
+               "\nexamples:\n  ltd-brake simulate --scenario 6\n"
                "  ltd-brake simulate --consist my_train.yaml --speed-kmh 80 --json\n"
                "  ltd-brake simulate --scenario 6 --params brake_params/uic_brake_pipe.yaml "
                "--record runs/s6_pipe\n",
@@ -69,25 +73,35 @@ def _adhesion(args: argparse.Namespace):
         raise InputError("command line", "--adhesion", str(exc)) from None
 
 
-def _start_up(spec, params, lut, adhesion) -> float:
-    """Compile (first run) or load the simulation kernels before the timed run, saying so on
-    stderr when they compile; returns the seconds it took."""
+def _start_up(args, spec, params, lut, adhesion) -> float:
+    """Load the simulation kernels before the timed run, or on the first run start compiling
+    them (in the background while the run starts as plain Python, else here), saying so on
+    stderr; returns the seconds it took."""
     import sys
     import time
 
-    from ..simulator import Simulator, compile_notice
+    from ..first_run import begin
+    from ..physics.equations import plain_now
+    from ..simulator import Simulator
 
-    notice = compile_notice(spec.consist, params)
-    if notice:
-        print(notice, file=sys.stderr, flush=True)
+    def say(line: str) -> None:
+        print(line, file=sys.stderr, flush=True)
+
     start = time.perf_counter()
     # the same train as the run's: the run then takes this compiled model and bound step loop
-    Simulator(spec.consist, spec.speed_kmh, params, lut, spec.track,
-              adhesion=adhesion).warm_up()
+    kwargs = dict(consist=spec.consist, speed_kmh=spec.speed_kmh, params=params, lut=lut,
+                  track=spec.track, adhesion=adhesion, step_s=args.step_s,
+                  tolerance_m_s=tolerance(args))
+    notice = begin(kwargs, say)
+    if notice:
+        say(notice)
+    sim = Simulator(**kwargs)
+    if notice and plain_now():
+        return time.perf_counter() - start
+    sim.warm_up()
     took = time.perf_counter() - start
     if notice:
-        print(f"compiled the simulation kernels in {took:.0f} s; later runs load them",
-              file=sys.stderr, flush=True)
+        say(f"compiled the simulation kernels in {took:.0f} s; later runs load them")
     return took
 
 
@@ -163,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
     params, lut = spec.params, spec.lut
     events = []
     sampler = _timeseries(args)
-    startup_s = _start_up(spec, params, lut, _adhesion(args))
+    startup_s = _start_up(args, spec, params, lut, _adhesion(args))
     # the recording's commands: the emergency brake at t = 0
     script = CommandScript(((0.0, {"emergency": True}),))
     with _Progress() as progress, _Recording(args, spec, script) as rec:
@@ -193,6 +207,7 @@ def run(args: argparse.Namespace) -> int:
         out["verdicts"] = verdicts.as_dict()
         out["non_physical"] = verdicts.non_physical
         out["startup_s"] = startup_s
+        out["plain_python_s"] = sim.plain_python_s
         out["adhesion"] = sim.adhesion.name
         out["wheel_slides"] = sim.wheel_slides()
         out["warnings"] = model_warnings(sim)
@@ -219,13 +234,24 @@ def run(args: argparse.Namespace) -> int:
     _print_slides(sim)
     _print_heat(sim)
     _print_verdicts(verdicts)
-    print(f"start-up         {startup_s:.2f} s (compiling or loading the simulation kernels, "
-          "once per process)")
+    print(f"start-up         {startup_s:.2f} s " + (
+        "(the simulation kernels compile in the background: a first run)"
+        if sim.plain_python_s > 0.0 else
+        "(compiling or loading the simulation kernels, once per process)"))
     print(f"cost             {res.wall_time_s * 1e3:.0f} ms wall, {res.real_time_factor:.0f}x "
-          f"real time, {res.steps} steps ({res.rejected_steps} rejected, shortest "
-          f"{res.smallest_step_s * 1e3:.2g} ms), {res.newton_iterations_per_step:.2f} Newton "
-          "iterations per step")
+          f"real time{_plain_part(sim)}, {res.steps} steps ({res.rejected_steps} rejected, "
+          f"shortest {res.smallest_step_s * 1e3:.2g} ms), {res.newton_iterations_per_step:.2f} "
+          "Newton iterations per step")
     return 0
+
+
+def _plain_part(sim) -> str:
+    """How much of the run ran its kernels as plain Python (a first run), for the cost line."""
+    if sim.plain_python_s <= 0.0:
+        return ""
+    part = ("all of it" if sim.plain_python_s >= sim.time_s - 1e-9 else
+            f"the first {sim.plain_python_s:.1f} s of {sim.time_s:.1f} s")
+    return f" (kernels as plain Python while they compiled: {part})"
 
 
 def tolerance(args: argparse.Namespace) -> float:
@@ -247,6 +273,7 @@ def _run_script(args: argparse.Namespace, spec) -> int:
     script = load_command_script(args.commands)
     events = []
     sampler = _timeseries(args)
+    _start_up(args, spec, spec.params, spec.lut, _adhesion(args))
 
     with _Progress() as progress, _Recording(args, spec, script) as rec:
         start = time.perf_counter()  # the run and its recording, not opening the folder
@@ -272,6 +299,7 @@ def _run_script(args: argparse.Namespace, spec) -> int:
         "peak_buff_kN": peaks.buff_N / 1e3, "peak_buff_coupler": peaks.buff_coupler,
         "events": [dict(e.detail, kind=e.kind, time_s=e.time_s) for e in events],
         "wall_time_s": wall, "real_time_factor": sim.time_s / wall if wall > 0 else None,
+        "plain_python_s": sim.plain_python_s,
         "verdicts": sim.verdicts().as_dict(),
         "adhesion": sim.adhesion.name, "wheel_slides": sim.wheel_slides(),
         "warnings": model_warnings(sim),
@@ -301,7 +329,8 @@ def _run_script(args: argparse.Namespace, spec) -> int:
     _print_slides(sim)
     _print_heat(sim)
     _print_verdicts(sim.verdicts())
-    print(f"cost             {wall * 1e3:.0f} ms wall, {out['real_time_factor']:.0f}x real time")
+    print(f"cost             {wall * 1e3:.0f} ms wall, {out['real_time_factor']:.0f}x real "
+          f"time{_plain_part(sim)}")
     return 0
 
 

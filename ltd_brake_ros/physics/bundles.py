@@ -348,8 +348,9 @@ STATS_DTYPE = np.dtype([(name, np.float64 if name == "smallest_step_s" else np.i
 
 
 def new_stats() -> np.ndarray:
-    """A zeroed counter record (an array of one :data:`STATS_DTYPE` element)."""
-    return np.zeros(1, STATS_DTYPE)
+    """A zeroed counter record (an array of one :data:`STATS_DTYPE` element; a record array,
+    whose element the plain-Python kernels can count into by field name as compiled ones do)."""
+    return np.zeros(1, STATS_DTYPE).view(np.recarray)
 
 
 def read_stats(record: np.ndarray) -> Stats:

@@ -7,6 +7,7 @@ the name says otherwise (``_kmh``, ``_kN``, ``_t``).
 from __future__ import annotations
 
 from types import FunctionType as _FunctionType
+from types import ModuleType as _ModuleType
 
 import numpy as np
 
@@ -21,12 +22,20 @@ def renamed_copy(fn, qualname: str, **names):
 
 
 try:  # pragma: no cover - exercised implicitly
-    from numba import njit
+    from numba.core.registry import CPUDispatcher
+
+    def _compiled(fn, options, cls=None):
+        """The dispatcher of ``fn`` compiled with numba's ``options`` (nopython, cached on
+        disk, without the C entry point, which only a ``cfunc`` caller would use and which
+        costs compile time)."""
+        opts = dict(options, nopython=True, nogil=True, no_cfunc_wrapper=True)
+        disp = (cls or _Jit)(py_func=fn, locals={}, targetoptions=opts)
+        disp.enable_caching()
+        return disp
 
     def jit(fn):
-        """Compile ``fn`` with numba (cached on disk; without the C entry point, which only a
-        ``cfunc`` caller would use and which costs compile time)."""
-        return njit(cache=True, nogil=True, no_cfunc_wrapper=True)(fn)
+        """Compile ``fn`` with numba (cached on disk)."""
+        return _compiled(fn, {})
 
     def jit_inline(fn):
         """Compile ``fn`` with numba, inlined into compiled callers.
@@ -34,7 +43,7 @@ try:  # pragma: no cover - exercised implicitly
         For small functions called in the innermost loops with bundles (NamedTuples of
         arrays): a call that is not inlined passes every array of the bundle.
         """
-        return njit(cache=True, nogil=True, inline="always", no_cfunc_wrapper=True)(fn)
+        return _compiled(fn, {"inline": "always"})
 
     def jit_step(fn):
         """Compile ``fn`` with numba without reference counting of its arrays.
@@ -44,7 +53,7 @@ try:  # pragma: no cover - exercised implicitly
         every array passed in and out of each call (an atomic operation each), which costs
         more than the arithmetic of a short train. Such a function must not create arrays.
         """
-        return njit(cache=True, nogil=True, _nrt=False, no_cfunc_wrapper=True)(fn)
+        return _compiled(fn, {"_nrt": False})
 
     def jit_vector(fn):
         """:func:`jit_step` with IEEE division (x / 0 gives inf or NaN instead of raising).
@@ -52,8 +61,7 @@ try:  # pragma: no cover - exercised implicitly
         For loops the compiler should vectorise: a zero check before each division keeps it
         from doing so. Only for divisions whose divisor cannot be zero.
         """
-        return njit(cache=True, nogil=True, _nrt=False, error_model="numpy",
-                    no_cfunc_wrapper=True)(fn)
+        return _compiled(fn, {"_nrt": False, "error_model": "numpy"})
 
     def jit_inner(fn):
         """:func:`jit` for a function that compiled code calls (see :class:`_Inner`)."""
@@ -63,9 +71,16 @@ try:  # pragma: no cover - exercised implicitly
         """:func:`jit_step` for a function that compiled code calls (see :class:`_Inner`)."""
         return _Inner.create(fn, {"_nrt": False})
 
-    from numba.core.registry import CPUDispatcher
+    class _Jit(CPUDispatcher):
+        """A compiled function of the package: a call from Python runs its plain-Python
+        version instead while :func:`run_plain_while` says so."""
 
-    class _Inner(CPUDispatcher):
+        def __call__(self, *args, **kwargs):
+            if _plain_while is not None and plain_now():
+                return plain(self)(*args, **kwargs)
+            return CPUDispatcher.__call__(self, *args, **kwargs)
+
+    class _Inner(_Jit):
         """A compiled function without the entry points a call from Python needs.
 
         numba builds, for every compiled function, a CPython wrapper that unboxes each
@@ -82,20 +97,18 @@ try:  # pragma: no cover - exercised implicitly
         @classmethod
         def create(cls, fn, options):
             """The dispatcher of ``fn`` compiled with numba's ``options`` (cached on disk)."""
-            opts = dict(options, nopython=True, nogil=True, no_cpython_wrapper=True,
-                        no_cfunc_wrapper=True)
-            disp = cls(py_func=fn, locals={}, targetoptions=opts)
-            disp.enable_caching()
+            disp = _compiled(fn, dict(options, no_cpython_wrapper=True), cls)
             disp._twin_options = dict(options)
             return disp
 
         def __call__(self, *args, **kwargs):
+            if _plain_while is not None and plain_now():
+                return plain(self)(*args, **kwargs)
             twin = self.__dict__.get("_twin")
             if twin is None:
                 fn = self.py_func
-                twin = njit(cache=True, nogil=True, no_cfunc_wrapper=True,
-                            **self._twin_options)(
-                    renamed_copy(fn, fn.__qualname__ + "_from_python"))
+                twin = _compiled(renamed_copy(fn, fn.__qualname__ + "_from_python"),
+                                 self._twin_options)
                 if _Inner.on_twin is not None:
                     _Inner.on_twin(twin)
                 self._twin = twin
@@ -108,6 +121,8 @@ try:  # pragma: no cover - exercised implicitly
 
     HAVE_NUMBA = True
 except ImportError:  # pragma: no cover - fallback keeps the package usable, only slower
+    CPUDispatcher = None
+
     def jit(fn):
         """No-op stand-in for the numba decorator."""
         return fn
@@ -118,6 +133,113 @@ except ImportError:  # pragma: no cover - fallback keeps the package usable, onl
         """No twins without numba."""
 
     HAVE_NUMBA = False
+
+
+# The plain-Python kernels. numba compiles a function on its first call (seconds for the step
+# loop, cached on disk afterwards); the same function run as Python gives the same floats
+# (IEEE arithmetic, the same libm), a few hundred times slower. A first run can so start at
+# once while its kernels compile elsewhere (:mod:`ltd_brake_ros.first_run`).
+
+#: While set: a callable that is true as long as calls from Python into compiled functions run
+#: their plain-Python versions (see :func:`run_plain_while`).
+_plain_while = None
+#: Plain-Python version of each compiled function, by dispatcher (see :func:`plain`).
+_PLAIN: dict = {}
+
+
+def run_plain_while(predicate) -> None:
+    """Run the package's compiled functions as plain Python (when called from Python) as long
+    as ``predicate()`` is true; it is asked at such calls, and once it is false the compiled
+    functions run again for good.
+
+    Parameters
+    ----------
+    predicate : callable or None
+        Cheap to call (it is asked at each call from Python). None: compiled from now on.
+    """
+    global _plain_while
+    _plain_while = predicate
+
+
+def plain_now() -> bool:
+    """Whether calls from Python into compiled functions run as plain Python now
+    (:func:`run_plain_while`)."""
+    global _plain_while
+    predicate = _plain_while
+    if predicate is None:
+        return False
+    if predicate():
+        return True
+    _plain_while = None
+    return False
+
+
+def _names(code) -> set:
+    """Global names a code object (and the functions defined in it) may read."""
+    names = set(code.co_names)
+    for const in code.co_consts:
+        if hasattr(const, "co_names"):
+            names |= _names(const)
+    return names
+
+
+def plain(fn):
+    """The plain-Python version of a compiled function: its Python source, calling the plain
+    versions of the compiled functions it calls (anything else: returned as is).
+
+    Parameters
+    ----------
+    fn : numba dispatcher or callable
+
+    Returns
+    -------
+    callable
+        Same arguments and results (the same floats) as ``fn``; ``is_plain`` is true of it.
+    """
+    if CPUDispatcher is None or not isinstance(fn, CPUDispatcher):
+        return fn
+    py = _PLAIN.get(fn)
+    if py is not None:
+        return py
+    src = fn.py_func
+    scope = dict(src.__globals__)
+    py = _FunctionType(src.__code__, scope, src.__name__, src.__defaults__, src.__closure__)
+    py.__qualname__, py.__module__, py.__doc__ = src.__qualname__, src.__module__, src.__doc__
+    py.plain_of = fn
+    _PLAIN[fn] = py  # before the callees: a function may call itself
+    for name in _names(src.__code__):
+        value = scope.get(name)
+        if isinstance(value, CPUDispatcher):
+            scope[name] = plain(value)
+        elif isinstance(value, _ModuleType) and value.__name__.startswith(_PACKAGE):
+            scope[name] = _PlainModule(value)  # ``friction.force_scale(...)`` and the like
+    return py
+
+
+_PACKAGE = __name__.split(".", 1)[0] + "."
+
+
+class _PlainModule:
+    """A module of the package as a plain-Python function sees it: its compiled functions
+    replaced by their plain versions (so that a plain function never calls compiled code)."""
+
+    def __init__(self, module):
+        self._module = module
+
+    def __getattr__(self, name):
+        value = getattr(self._module, name)
+        if isinstance(value, CPUDispatcher):
+            value = plain(value)
+        elif isinstance(value, _ModuleType) and value.__name__.startswith(_PACKAGE):
+            value = _PlainModule(value)
+        setattr(self, name, value)  # looked up once
+        return value
+
+
+def is_plain(fn) -> bool:
+    """Whether ``fn`` is a compiled function's plain-Python version (:func:`plain`)."""
+    return getattr(fn, "plain_of", None) is not None
+
 
 from .constants import G, KMH_PER_MS  # noqa: F401 (re-exported)
 

@@ -49,8 +49,8 @@ import numpy as np
 
 from . import brakes
 from .brakes import adhesion, friction, thermal
-from .equations import (HAVE_NUMBA, jit_step, jit_step_inner, lut_segment, renamed_copy,
-                        resistance_coefficients)
+from .equations import (HAVE_NUMBA, jit_step, jit_step_inner, lut_segment, plain, plain_now,
+                        renamed_copy, resistance_coefficients)
 from .bundles import (ACCEL_VALID, ADHESION_SPLIT_SPEED_M_S, CURVE, DEFAULT_NEWTON_RTOL,
                       DEFAULT_TOLERANCE_M_S, FULL_APPLICATION, GRADIENT, Inputs, KinematicState,
                       MEAN_ADHESION_MIN_SPEED_M_S, NEWTON_FAILED, NEXT_STEP, NOT_FINITE, OK,
@@ -586,6 +586,8 @@ def _bind(fn, args):
     """``fn`` compiled for the types of ``args`` (see :func:`bind_run_loop`)."""
     if not HAVE_NUMBA:  # pragma: no cover - plain Python has no dispatch to skip
         return fn
+    if plain_now():  # while the kernels compile elsewhere (bound anew once they are ready)
+        return plain(fn)
     key = _layout_key(args)
     key = None if key is None else (fn.py_func.__qualname__, key)
     bound = _BOUND.get(key) if key is not None else None

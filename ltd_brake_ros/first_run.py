@@ -1,0 +1,225 @@
+"""The first run of a train whose simulation kernels are not compiled yet.
+
+numba compiles the step loop on its first call: about 15 s on two cores, once per installation,
+machine and brake model (then it loads it from its disk cache in a fraction of a second). A
+first run of ``ltd-brake simulate`` or of the Python API does not wait for that: a background
+process compiles the kernels for the same train while the run starts at once with the kernels
+as plain Python (:func:`~ltd_brake_ros.physics.equations.plain`: the same arithmetic, so the
+same results, a few hundred times slower), and the run goes on compiled from the first chunk
+after they are ready. A short run (an emergency stop of a few dozen wagons) ends before; the
+background process finishes the compile all the same, so the next run loads it.
+
+One background compile runs at a time for a numba cache: it holds a lock file
+(:func:`lock_path`) from before it starts until it has written the cache, and a run that
+finds it held waits for that one instead of starting another.
+
+``LTD_BRAKE_FIRST_RUN=wait`` compiles in the foreground instead (before the run, as a process
+that runs many trains wants it; the test suite does).
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import pickle
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+#: Environment variable choosing how a first run compiles: ``background`` (the default) or
+#: ``wait``.
+MODE_ENV = "LTD_BRAKE_FIRST_RUN"
+#: Seconds between two looks at the lock while the background compile runs.
+POLL_S = 0.25
+#: Seconds after which a background compile gives up (SIGALRM ends it; about 15 s is usual).
+COMPILE_LIMIT_S = 900
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - Windows: no flock, the first run compiles in place
+    fcntl = None
+
+
+def lock_path() -> Path:
+    """The lock file of background compiles into this installation's numba cache.
+
+    Returns
+    -------
+    Path
+        In the temporary folder, named after the user, the package's folder and
+        ``NUMBA_CACHE_DIR``.
+    """
+    key = f"{Path(__file__).resolve().parent}\0{os.environ.get('NUMBA_CACHE_DIR', '')}"
+    digest = hashlib.sha256(key.encode()).hexdigest()[:16]
+    user = os.getuid() if hasattr(os, "getuid") else 0
+    return Path(tempfile.gettempdir()) / f"ltd_brake_ros-compile-{user}-{digest}.lock"
+
+
+class Background:
+    """A background compile, as :func:`~ltd_brake_ros.physics.equations.run_plain_while`
+    asks it: true while it runs (looked at every :data:`POLL_S` at most).
+
+    Parameters
+    ----------
+    process : subprocess.Popen or None
+        The compiling process this run started (None: another run's, found running).
+    say : callable
+        Where to say that the compile failed (one line).
+    """
+
+    def __init__(self, process: subprocess.Popen | None, say, inputs: str | None = None):
+        self.process, self._say, self._inputs = process, say, inputs
+        self._next = 0.0
+        self.running = True
+
+    def __call__(self) -> bool:
+        now = time.monotonic()
+        if not self.running or now < self._next:
+            return self.running
+        self._next = now + POLL_S
+        self.running = _held(lock_path())
+        if not self.running and self.process is not None:
+            code = self.process.wait()
+            if self._inputs is not None and os.path.exists(self._inputs):
+                os.unlink(self._inputs)  # a process that failed before reading them
+            if code != 0:
+                self._say(f"the background compile failed (exit status {code}, its messages "
+                          f"in {lock_path().with_suffix('.log')}): compiling here")
+        return self.running
+
+
+def _held(path: Path) -> bool:
+    """Whether a process holds the lock ``path`` (without keeping it)."""
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        return True
+    finally:
+        os.close(fd)  # closing it releases a lock taken here
+    return False
+
+
+def start(simulator_kwargs: dict, say) -> Background | None:
+    """Compile a train's kernels in a background process and run them as plain Python in this
+    one until they are ready.
+
+    Call it only when the kernels are not in the cache
+    (:func:`~ltd_brake_ros.simulator.compile_notice`).
+
+    Parameters
+    ----------
+    simulator_kwargs : dict
+        Arguments of :class:`~ltd_brake_ros.simulator.Simulator` for the run's train (picklable
+        inputs); the background process warms such a simulator up.
+    say : callable
+        Called with one line if the background compile fails (this process then compiles).
+
+    Returns
+    -------
+    Background or None
+        None: nothing started (``LTD_BRAKE_FIRST_RUN=wait``, no file locks on this system, or
+        no temporary folder): compile in the foreground.
+    """
+    from .physics.equations import HAVE_NUMBA, run_plain_while
+
+    if os.environ.get(MODE_ENV, "background") == "wait" or fcntl is None or not HAVE_NUMBA:
+        return None
+    path = lock_path()
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+    except OSError:
+        return None
+    process = inputs = None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:  # another run's compile is under way: wait for that one
+            pass
+        else:  # the child inherits the lock with the descriptor and holds it until it ends
+            with tempfile.NamedTemporaryFile("wb", suffix=".pickle", prefix="ltd_brake_ros-",
+                                             delete=False) as inputs:
+                try:
+                    pickle.dump(simulator_kwargs, inputs)
+                except (pickle.PicklingError, TypeError, AttributeError):
+                    os.unlink(inputs.name)
+                    return None
+            inputs = inputs.name
+            try:
+                with open(path.with_suffix(".log"), "wb") as log:
+                    process = subprocess.Popen(
+                        [sys.executable, "-m", "ltd_brake_ros.first_run", str(fd), inputs],
+                        stdin=subprocess.DEVNULL, stdout=log, stderr=log,
+                        pass_fds=(fd,),
+                        start_new_session=True)  # the compile outlives a run that ends first
+            except OSError:
+                os.unlink(inputs)
+                raise
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+    background = Background(process, say, inputs)
+    _STARTED.append(background)
+    run_plain_while(background)
+    return background
+
+
+def begin(simulator_kwargs: dict, say) -> str | None:
+    """Before a user's run: what to tell the user about compiling its kernels, the compile
+    started in the background where it can be.
+
+    Parameters
+    ----------
+    simulator_kwargs : dict
+        Arguments of :class:`~ltd_brake_ros.simulator.Simulator` for the run's train
+        (``consist`` and ``params`` at least).
+    say : callable
+        Called with one line if a background compile fails.
+
+    Returns
+    -------
+    str or None
+        One line; None when the kernels are cached (the run loads them).
+    """
+    from .physics.kernel import DEFAULT_TOLERANCE_M_S
+    from .simulator import COMPILE_S, compile_notice
+
+    tolerance = simulator_kwargs.get("tolerance_m_s", DEFAULT_TOLERANCE_M_S)
+    notice = compile_notice(simulator_kwargs["consist"], simulator_kwargs.get("params"),
+                            0.0 if tolerance is None else tolerance)
+    if notice is None or start(simulator_kwargs, say) is None:
+        return notice
+    return (f"compiling the simulation kernels in the background (first run only; about "
+            f"{COMPILE_S} s on two cores): this run starts at once with them as plain Python, "
+            "slower, and goes on compiled when they are ready")
+
+
+#: Background compiles this process started (kept so that their processes are reaped).
+_STARTED: list[Background] = []
+
+
+def _compile(fd: int, inputs: str) -> int:
+    """The background process: warm a simulator of the run's train up, then release the
+    lock (by ending)."""
+    try:
+        with open(inputs, "rb") as f:
+            kwargs = pickle.load(f)
+    finally:
+        os.unlink(inputs)
+    os.set_inheritable(fd, False)
+    if hasattr(signal, "alarm"):  # a compile that hangs must not hold the lock for ever
+        signal.alarm(COMPILE_LIMIT_S)
+    from .simulator import Simulator
+
+    Simulator(**kwargs).warm_up()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(_compile(int(sys.argv[1]), sys.argv[2]))
