@@ -330,13 +330,41 @@ class RosProbe:
         for service in services:
             self.client(types[service], f"{node}/{service}")
 
+    #: Seconds without a response after which a request that may be repeated is sent again.
+    RESEND_S = 5.0
+
     def call(self, srv_type, name: str, request, timeout_s: float = 30.0):
-        """Call a service and return its response (see :meth:`prepare`)."""
+        """Call a service and return its response (see :meth:`prepare`).
+
+        A server drops its response when it has not yet discovered the client's response
+        reader (Fast DDS waits 100 ms for it): after a lost discovery packet, that takes a
+        retransmission. A request that may be repeated (pause, get or set parameters) is then
+        sent again every :data:`RESEND_S`; a step or a reset, which must not happen twice,
+        is sent once.
+        """
+        from rcl_interfaces.srv import GetParameters, SetParameters
+        from std_srvs.srv import SetBool
+
         client = self.client(srv_type, name)
         self.spin_until(client.service_is_ready, timeout_s, f"service {name}")
-        future = client.call_async(request)
-        self.spin_until(future.done, timeout_s, f"the response of {name}")
-        return future.result()
+        futures = [client.call_async(request)]
+        resend = srv_type in (SetBool, GetParameters, SetParameters)
+        now = time.monotonic()
+        end, next_send = now + timeout_s, now + self.RESEND_S
+        while not any(f.done() for f in futures):
+            now = time.monotonic()
+            if now > end:
+                sent = f" ({len(futures)} requests sent)" if len(futures) > 1 else ""
+                pytest.fail(f"timed out after {timeout_s:g} s waiting for the response of "
+                            f"{name}{sent}")
+            if resend and now >= next_send:
+                futures.append(client.call_async(request))
+                next_send = now + self.RESEND_S
+            self.executor.spin_once(timeout_sec=0.02)
+        for f in futures:
+            if not f.done():
+                client.remove_pending_request(f)
+        return next(f for f in futures if f.done()).result()
 
     def set_parameters(self, node: str, **values):
         """Set parameters of ``node`` one by one; returns the list of SetParametersResult."""
