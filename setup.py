@@ -5,8 +5,8 @@ from glob import glob
 from setuptools import find_packages, setup
 
 PACKAGE = "ltd_brake_ros"
-# the one version: ltd_brake_ros/__init__.py (package.xml repeats it; a test keeps them equal)
-with open(f"{PACKAGE}/__init__.py", encoding="utf-8") as f:
+# the one version: ltd_brake_ros/_version.py (package.xml repeats it; a test keeps them equal)
+with open(f"{PACKAGE}/_version.py", encoding="utf-8") as f:
     VERSION = re.search(r'^__version__ = "([^"]+)"', f.read(), re.M).group(1)
 
 setup(

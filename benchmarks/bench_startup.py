@@ -40,27 +40,13 @@ def _figures(text: str) -> tuple[float, float]:
     return startup, rtf
 
 
-def _wait_unlocked(env: dict) -> float:
-    """Seconds until the background compile of ``env``'s cache releases its lock."""
-    import fcntl
-
-    code = "from ltd_brake_ros.first_run import lock_path; print(lock_path())"
-    path = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
-                          text=True, check=True).stdout.strip()
-    start = time.perf_counter()
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
-    finally:
-        os.close(fd)
-    return time.perf_counter() - start
-
-
 def main() -> None:
     """Print the table."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--warm", type=int, default=3, help="later runs (default 3)")
     args = ap.parse_args()
+    from ltd_brake_ros.first_run import wait_for_compile
+
     exe = shutil.which("ltd-brake") or sys.exit("ltd-brake is not on PATH (./dev.sh run ...)")
     argv = [exe, "simulate", "--scenario", "6"]
     caches = [tempfile.mkdtemp(prefix="ltd-brake-numba-") for _ in range(2)]
@@ -71,7 +57,9 @@ def main() -> None:
         wall, text = _run(argv, env)
         rows.append(("first (empty cache)", wall, *_figures(text),
                      "compiling the simulation kernels" in text))
-        waited = _wait_unlocked(env)
+        ended = time.perf_counter()
+        wait_for_compile(caches[0])
+        waited = time.perf_counter() - ended
         compile_s = time.perf_counter() - start
         for k in range(1, 1 + args.warm):
             wall, text = _run(argv, env)

@@ -42,16 +42,22 @@ except ImportError:  # pragma: no cover - Windows: no flock, the first run compi
     fcntl = None
 
 
-def lock_path() -> Path:
+def lock_path(numba_cache_dir: str | None = None) -> Path:
     """The lock file of background compiles into this installation's numba cache.
+
+    Parameters
+    ----------
+    numba_cache_dir : str, optional
+        The cache's ``NUMBA_CACHE_DIR`` (default: this process's, "" when unset).
 
     Returns
     -------
     Path
-        In the temporary folder, named after the user, the package's folder and
-        ``NUMBA_CACHE_DIR``.
+        In the temporary folder, named after the user, the package's folder and the cache.
     """
-    key = f"{Path(__file__).resolve().parent}\0{os.environ.get('NUMBA_CACHE_DIR', '')}"
+    if numba_cache_dir is None:
+        numba_cache_dir = os.environ.get("NUMBA_CACHE_DIR", "")
+    key = f"{Path(__file__).resolve().parent}\0{numba_cache_dir}"
     digest = hashlib.sha256(key.encode()).hexdigest()[:16]
     user = os.getuid() if hasattr(os, "getuid") else 0
     return Path(tempfile.gettempdir()) / f"ltd_brake_ros-compile-{user}-{digest}.lock"
@@ -67,6 +73,8 @@ class Background:
         The compiling process this run started (None: another run's, found running).
     say : callable
         Where to say that the compile failed (one line).
+    inputs : str, optional
+        The file of pickled inputs given to ``process`` (removed if it is left behind).
     """
 
     def __init__(self, process: subprocess.Popen | None, say, inputs: str | None = None):
@@ -103,6 +111,31 @@ def _held(path: Path) -> bool:
     finally:
         os.close(fd)  # closing it releases a lock taken here
     return False
+
+
+def wait_for_compile(numba_cache_dir: str | None = None, timeout_s: float | None = None
+                     ) -> bool:
+    """Wait until no background compile into a numba cache runs.
+
+    Parameters
+    ----------
+    numba_cache_dir : str, optional
+        As for :func:`lock_path`.
+    timeout_s : float, optional
+        Give up after this long [s] (default: wait as long as it takes).
+
+    Returns
+    -------
+    bool
+        False: still running after ``timeout_s``.
+    """
+    path = lock_path(numba_cache_dir)
+    deadline = None if timeout_s is None else time.monotonic() + timeout_s
+    while _held(path):
+        if deadline is not None and time.monotonic() > deadline:
+            return False
+        time.sleep(0.05)
+    return True
 
 
 def start(simulator_kwargs: dict, say) -> Background | None:

@@ -39,7 +39,7 @@ def build_parser(verb: str | None = None) -> argparse.ArgumentParser:
         description="Freight-train emergency braking: longitudinal train dynamics with the "
                     "empirical UIC braked-weight air-brake model (Bosso, Magelli, Zampieri et al.).",
         epilog=CONVENTIONS, formatter_class=argparse.RawDescriptionHelpFormatter)
-    from .. import __version__
+    from .._version import __version__
 
     parser.add_argument("--version", action="version", version=f"ltd-brake {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")

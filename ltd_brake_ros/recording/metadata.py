@@ -1,7 +1,7 @@
 """Run information stored in a recording: what train, at what speed, with which settings."""
 from __future__ import annotations
 
-from .. import __version__
+from .._version import __version__
 from ..verdicts import limits_metadata
 
 

@@ -301,7 +301,7 @@ def _checksum_path(path: Path) -> Path:
 
 
 def _package_version() -> str:
-    from .. import __version__
+    from .._version import __version__
 
     return __version__
 

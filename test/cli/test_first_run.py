@@ -116,32 +116,6 @@ def test_a_run_goes_on_compiled_from_the_chunk_after_the_kernels_are_ready():
     _same(compiled, mixed)
 
 
-def _wait_for_lock(env, timeout_s=600.0):
-    """Block until the background compile of ``env``'s numba cache has released its lock."""
-    import fcntl
-    import os
-    import subprocess
-    import sys
-    import time
-
-    path = subprocess.run([sys.executable, "-c", "from ltd_brake_ros.first_run import "
-                           "lock_path; print(lock_path())"], env=env, capture_output=True,
-                          text=True, check=True, timeout=120).stdout.strip()
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
-    try:
-        deadline = time.monotonic() + timeout_s
-        while True:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                return
-            except OSError:
-                if time.monotonic() > deadline:
-                    pytest.fail(f"the background compile still holds {path}")
-                time.sleep(0.2)
-    finally:
-        os.close(fd)
-
-
 def test_a_first_run_starts_at_once_and_leaves_the_kernels_compiled(tmp_path):
     """The user's first ``ltd-brake simulate``: an empty numba cache, the run in plain Python
     at once while a background process compiles, the same results; the next run loads the
@@ -152,6 +126,8 @@ def test_a_first_run_starts_at_once_and_leaves_the_kernels_compiled(tmp_path):
 
     from conftest import executable
 
+    from ltd_brake_ros.first_run import wait_for_compile
+
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"),
                LTD_BRAKE_FIRST_RUN="background")
     argv = [executable("ltd-brake"), "simulate", "--scenario", "1", "--json"]
@@ -161,7 +137,7 @@ def test_a_first_run_starts_at_once_and_leaves_the_kernels_compiled(tmp_path):
         assert "compiling the simulation kernels in the background" in first.stderr
         assert "compiled the simulation kernels in" not in first.stderr
     finally:
-        _wait_for_lock(env)
+        assert wait_for_compile(env["NUMBA_CACHE_DIR"], timeout_s=600.0), "still compiling"
     second = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=600)
     assert second.returncode == 0, second.stderr
     assert "compiling" not in second.stderr, second.stderr
