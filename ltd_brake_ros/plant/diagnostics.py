@@ -120,7 +120,7 @@ class PaceWindow:
 
 def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: float = 0.0,
                  window_s: float = 0.0, new_overruns: int = 0, chunks: int = 0,
-                 overruns: int = 0, lag_s: float = 0.0, peak_lag_s: float = 0.0,
+                 overruns: int = 0, dropped_s: float = 0.0, lag_s: float = 0.0, peak_lag_s: float = 0.0,
                  real_time_factor: float = 0.0,
                  commands: Commands = Commands(), rejected: int = 0, new_rejected: int = 0,
                  handled: int = 0, resets: int = 0, recording: str = "off",
@@ -139,6 +139,8 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
         What :meth:`PaceWindow.take` returned.
     chunks, overruns : int
         Chunks advanced and overruns since start-up.
+    dropped_s : float
+        Lag given up by those overruns, summed [s wall].
     lag_s, peak_lag_s : float
         How far the plant is behind its schedule now, and at most in the window (what
         :meth:`PaceWindow.take_peak_lag` returned) [s wall].
@@ -183,6 +185,7 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
         "achieved_real_time_factor": f3(achieved),
         "chunks": str(chunks),
         "chunk_overruns": str(overruns),
+        "schedule_dropped_s": f3(dropped_s),
         "schedule_lag_s": f3(lag_s),
         "peak_schedule_lag_s": f3(peak_lag_s),
         "emergency_command": "true" if commands.emergency else "false",

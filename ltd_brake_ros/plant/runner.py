@@ -80,6 +80,9 @@ class PacingStats:
     max_lag_s : float
         Largest lag behind the schedule after a chunk (finish minus the next chunk's
         deadline) [s wall].
+    dropped_s : float
+        Lag given up by the overruns, summed: simulated time fell behind the wall clock by
+        this much times the real-time factor [s wall].
     lateness_s : deque of float
         Publication time minus deadline of the most recent paced chunks [s].
     """
@@ -88,6 +91,7 @@ class PacingStats:
     overruns: int = 0
     caught_up: int = 0
     max_lag_s: float = 0.0
+    dropped_s: float = 0.0
     lateness_s: deque = field(default_factory=lambda: deque(maxlen=LATENESS_SAMPLES))
 
 
@@ -355,6 +359,7 @@ class PlantRunner:
         return plant_status(
             sim, state=state, reason=reason, achieved=achieved, window_s=window_s,
             new_overruns=new, chunks=stats.chunks, overruns=stats.overruns,
+            dropped_s=stats.dropped_s,
             lag_s=self._lag(now), peak_lag_s=self._window.take_peak_lag(),
             real_time_factor=self.real_time_factor, commands=self.commands,
             rejected=sum(self.rejected.values()), new_rejected=self._window.take_rejected(
@@ -434,6 +439,7 @@ class PlantRunner:
             else:
                 # too far behind to catch up: count it and restart the schedule from now
                 stats.overruns += 1
+                stats.dropped_s += lag
                 self._restart_schedule(done, first_due_now=True)
 
     def _publish(self, snap: Snapshot) -> None:

@@ -4,10 +4,11 @@ from __future__ import annotations
 import pytest
 
 from plant_helpers import make_plant
-from ltd_brake_ros.plant.diagnostics import OK, WARN, PaceWindow
+from ltd_brake_ros.plant.diagnostics import OK, PaceWindow
 
 KEYS = ["state", "sim_time_s", "real_time_factor", "achieved_real_time_factor", "chunks",
-        "chunk_overruns", "schedule_lag_s", "peak_schedule_lag_s", "emergency_command", "brake_command_time_s", "head_speed_kmh",
+        "chunk_overruns", "schedule_dropped_s", "schedule_lag_s", "peak_schedule_lag_s",
+        "emergency_command", "brake_command_time_s", "head_speed_kmh",
         "peak_draft_kN", "peak_draft_coupler", "peak_buff_kN", "peak_buff_coupler",
         "couplers_beyond_lut", "brake_demand", "traction_command", "overcharge_command",
         "rejected_inputs",

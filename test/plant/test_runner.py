@@ -115,6 +115,9 @@ def test_lag_of_slow_chunks_accumulates_and_an_overrun_rebases_once_beyond_the_b
     status = plant.statuses[0][1]
     assert status.level == WARN and status.message == "1 chunk overrun(s) in the last 1.0 s"
     assert status.values["peak_schedule_lag_s"] == "0.110"
+    # the overrun gave up its lag: 110 ms of simulated time behind the wall clock for good
+    assert stats.dropped_s == pytest.approx(0.11, abs=1e-9)
+    assert status.values["schedule_dropped_s"] == "0.110"
 
 
 @pytest.mark.parametrize("budget_s, cost_s", [(0.0, 0.05), (0.2, 0.25)])
@@ -137,6 +140,11 @@ def test_a_chunk_late_beyond_the_budget_counts_one_overrun_and_rebases_without_a
     assert status.level == WARN and status.message == "1 chunk overrun(s) in the last 1.0 s"
     assert status.values["chunk_overruns"] == "1"
     assert status.values["peak_schedule_lag_s"] == f"{cost_s - 0.02:.3f}"
+    assert status.values["schedule_dropped_s"] == f"{cost_s - 0.02:.3f}"
+    # what the plant published: simulated time behind the wall by the lag it gave up, plus
+    # at most one chunk of a schedule that is early until the next chunk is due
+    behind = (plant.clock.t - start) - plant.stamps_ns[-1] / 1e9
+    assert cost_s - 0.02 <= behind <= cost_s - 0.02 + 0.02 + 1e-9, behind
 
 
 def test_diagnostics_report_the_lag_while_the_plant_catches_up():
@@ -150,6 +158,7 @@ def test_diagnostics_report_the_lag_while_the_plant_catches_up():
     assert status.values["schedule_lag_s"] == "0.085"  # behind chunk 50, due at 1.00 s
     assert status.values["peak_schedule_lag_s"] == "0.085"
     assert (status.level, status.values["chunk_overruns"]) == (OK, "0")
+    assert status.values["schedule_dropped_s"] == "0.000"  # caught up: nothing given up
     assert plant.stamps_ns[-1] == round((1.2 - 1e-9) // 0.02) * CHUNK_NS  # caught up
 
 

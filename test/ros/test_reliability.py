@@ -32,6 +32,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from conftest import executable
+from ltd_brake_ros.plant.settings import DEFAULT_MAX_CATCH_UP_S, PlantSettings
 from ltd_brake_ros.recording.bag import (BagWriter, TruncatedBagWarning, bag_info, read_bag,
                                          recover)
 from node_helpers import (ARRAY_TOPICS, SIGNALS, diagnostics_of, level_int, limited_argv,
@@ -50,6 +51,54 @@ FLUSHED_AFTER_S = 3.0
 
 def _clock_ns(msg: Clock) -> int:
     return msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+
+
+class PaceRecord:
+    """The node's clock and the time its overruns gave up, each with its publication time.
+
+    The pace is the node's own, from its publication times (source timestamps, the node's
+    wall clock), not the probe's arrival times: the probe shares the machine with the node.
+    """
+
+    def __init__(self, probe, ns: str, node: str):
+        #: (arrival [s, monotonic], stamp [ns], publication [ns])
+        self.clocks: list[tuple[float, int, int]] = []
+        #: (publication [ns], lag given up by overruns since start-up [s wall])
+        self.dropped: list[tuple[int, float]] = []
+        self._probe = probe
+        probe.node.create_subscription(
+            Clock, f"{ns}/clock", lambda m, info: self.clocks.append(
+                (time.monotonic(), _clock_ns(m), info["source_timestamp"])),
+            QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+        probe.node.create_subscription(
+            DiagnosticArray, "/diagnostics", lambda m, info: self.dropped.extend(
+                (info["source_timestamp"], float(d["schedule_dropped_s"]))
+                for d in diagnostics_of([m], node)), 100)
+
+    def check(self, started: float, ended: float, new_overruns: int) -> tuple[float, float]:
+        """Assert that simulated time kept up with the wall clock between the arrival times
+        ``started`` and ``ended`` [s, monotonic], but for what the node says its
+        ``new_overruns`` gave up; return the pace [-] and the time given up [s].
+
+        At real_time_factor 1, at a publication the plant is behind its schedule by at most
+        ``max_catch_up_s`` plus the chunk just run, or it counts an overrun and gives that lag
+        up. It may be that far behind at the first publication of the window and on time at
+        the last, or the reverse; each overrun restarts the schedule with a chunk due at once,
+        gaining at most a chunk.
+        """
+        window = [(sent_ns, stamp) for t, stamp, sent_ns in self.clocks if started <= t <= ended]
+        assert len(window) > 50, len(window)
+        (first_ns, first_stamp), (last_ns, last_stamp) = window[0], window[-1]
+        self._probe.spin_until(lambda: self.dropped and self.dropped[-1][0] >= last_ns, 10,
+                               "a diagnostics report after the window")
+        given_up_s = next(d for ns, d in self.dropped if ns >= last_ns) \
+            - max([d for ns, d in self.dropped if ns <= first_ns], default=0.0)
+        chunk_s, budget_s = PlantSettings().chunk_s, DEFAULT_MAX_CATCH_UP_S
+        span_s = (last_ns - first_ns) / 1e9
+        lost_s = span_s - (last_stamp - first_stamp) / 1e9
+        assert -(budget_s + chunk_s * (1 + new_overruns)) <= lost_s \
+            <= given_up_s + budget_s + chunk_s, (lost_s, given_up_s, span_s, new_overruns)
+        return (last_stamp - first_stamp) / (last_ns - first_ns), given_up_s
 
 
 def _diag(probe, node: str) -> dict:
@@ -378,12 +427,7 @@ def test_hostile_values_and_parameters_are_rejected_while_the_plant_keeps_time(
         processes, probe, tmp_path):
     ns, node = "/hostile", "/hostile/sim_node"
     folder = tmp_path / "hostile"
-    # (arrival [s], stamp [ns], publication [ns, the node's clock]): the pace is the node's
-    clocks = []
-    probe.node.create_subscription(
-        Clock, f"{ns}/clock", lambda m, info: clocks.append(
-            (time.monotonic(), _clock_ns(m), info["source_timestamp"])),
-        QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+    pace_record = PaceRecord(probe, ns, node)
     probe.prepare(node, "set_parameters", "get_parameters")
     probe.subscribe("/diagnostics", DiagnosticArray)
     proc = processes.start(*node_argv(ns, "record:=true", f"record_dir:={folder}",
@@ -420,16 +464,13 @@ def test_hostile_values_and_parameters_are_rejected_while_the_plant_keeps_time(
                       "the last good values in diagnostics")
     ended = time.monotonic()
     wall = ended - started
-    window = [(sent_ns, stamp) for t, stamp, sent_ns in clocks if started <= t <= ended]
-    assert len(window) > 100
-    pace = (window[-1][1] - window[0][1]) / (window[-1][0] - window[0][0])
-    # the deadline held: simulated time kept up with the wall clock, no overruns to speak of
-    assert pace == pytest.approx(1.0, rel=0.05)
+    # the deadline held: few overruns while flooded
     during = diagnostics_of(probe.received["/diagnostics"][first_diag:], node)
     assert during and int(during[-1]["chunk_overruns"]) - overruns_before <= 3, \
         (overruns_before, during[-1])
-    assert all(float(d["achieved_real_time_factor"]) == pytest.approx(1.0, rel=0.15)
-               for d in during[1:]), [d["achieved_real_time_factor"] for d in during]
+    new_overruns = int(during[-1]["chunk_overruns"]) - overruns_before
+    # and simulated time kept up with the wall clock but for what the overruns gave up
+    pace, given_up_s = pace_record.check(started, ended, new_overruns)
 
     # logged, but throttled: one warning per topic per 2 s, not one per message
     out = proc.output()
@@ -451,7 +492,7 @@ def test_hostile_values_and_parameters_are_rejected_while_the_plant_keeps_time(
         assert 0.5 * n <= len(got[topic]) <= n, (topic, len(got[topic]), n)
     print(f"\nhostile: sent {sum(sent.values())} values ({sum(sent.values()) - 2} bad) in "
           f"{wall:.1f} s, node took {diag['inputs_handled']} and rejected {bad}; pace "
-          f"{pace:.3f}; overruns {int(during[-1]['chunk_overruns']) - overruns_before}")
+          f"{pace:.3f}; overruns {new_overruns}, giving up {given_up_s:.3f} s")
 
 
 FLOOD = textwrap.dedent("""\
@@ -508,30 +549,24 @@ def test_command_flood_keeps_the_pace_and_every_handled_command_is_recorded(
     proc = processes.start(*node_argv(ns, "record:=true", f"record_dir:={folder}",
                                       "real_time_factor:=1.0"), name="flood")
     _wait_diag(probe, node, bool, 60, f"diagnostics of {node}:\n{proc.output()}")
-    # (arrival [s, monotonic], stamp [ns], publication [ns, the node's wall clock]): the pace
-    # is the node's, from its own publication times, not the probe's arrival times (the probe
-    # shares the machine with the flood and may take a message late)
-    clocks = []
-    probe.node.create_subscription(
-        Clock, f"{ns}/clock", lambda m, info: clocks.append(
-            (time.monotonic(), _clock_ns(m), info["source_timestamp"])),
-        QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+    pace_record = PaceRecord(probe, ns, node)
     flood = processes.start(sys.executable, "-c", FLOOD, f"{ns}/brake_command",
                             str(FLOOD_RATE), str(FLOOD_S), name="flooder")
     probe.spin_until(lambda: "flooding" in flood.output(), 60, "the flood to start")
     started = time.monotonic()
     first_diag = len(probe.received["/diagnostics"])
+    overruns_before = int(_diag(probe, node)["chunk_overruns"])
     probe.spin_until(lambda: "sent" in flood.output(), FLOOD_S + 30, "the flood to end")
     ended = time.monotonic()
     assert flood.wait(30) == 0, flood.output()
     sent, took = re.search(r"sent (\d+) in ([\d.]+) s", flood.output()).groups()
     sent, rate = int(sent), int(sent) / float(took)
 
-    # the pace: simulated time over wall time while the flood ran, from the probe's clock
-    window = [(sent_ns, s) for t, s, sent_ns in clocks if started + 1.0 <= t <= ended - 0.5]
-    assert len(window) > 50
-    pace = (window[-1][1] - window[0][1]) / (window[-1][0] - window[0][0])
+    # the pace: simulated time over wall time while the flood ran, but for what overruns
+    # (a stall of the shared machine beyond max_catch_up_s) gave up, as the node reports it
     during = diagnostics_of(probe.received["/diagnostics"][first_diag:], node)
+    new_overruns = int(during[-1]["chunk_overruns"]) - overruns_before
+    pace, given_up_s = pace_record.check(started + 1.0, ended - 0.5, new_overruns)
     achieved = [float(d["achieved_real_time_factor"]) for d in during[1:]]
 
     # the node has worked through its queue when the count stops changing
@@ -548,13 +583,12 @@ def test_command_flood_keeps_the_pace_and_every_handled_command_is_recorded(
     print(f"\nflood: sent {sent} brake_command messages at {rate:.0f}/s for {float(took):.1f} s; "
           f"node handled {last} ({100 * last / sent:.1f} %), bag holds {in_bag}; pace "
           f"{pace:.3f} x real time; achieved real_time_factor per second "
-          f"{min(achieved):.3f}..{max(achieved):.3f}; overruns "
-          f"{during[-1]['chunk_overruns'] if during else '?'}")
+          f"{min(achieved):.3f}..{max(achieved):.3f}; overruns {new_overruns}, giving up "
+          f"{given_up_s:.3f} s")
     assert in_bag == last, "the recorder lost a command the node handled"
     assert 0 < last < sent, "not a flood: the node took every command"
-    # the pace held over the whole flood and in the typical second (without the callbacks
-    # stepping aside it fell to 0.82-0.93 here; a shared 2-core machine adds a few % of noise)
-    assert pace == pytest.approx(1.0, rel=0.07)
+    # the pace held in the typical second: without the callbacks stepping aside it fell to
+    # 0.82-0.93 here; a stall of the shared machine disturbs a second or two, not the median
     assert achieved and sorted(achieved)[len(achieved) // 2] == pytest.approx(1.0, rel=0.07)
 
 

@@ -179,8 +179,8 @@ def test_live_plant_stops_like_the_offline_simulator(processes, probe):
     times = [clock_s(c) for c in clocks[first_clock:]]
     assert times[0] == 0.0 and all(b > a for a, b in zip(times, times[1:])), "non-monotone clock"
     diag = diagnostics(probe, node)
-    for key in ("achieved_real_time_factor", "chunk_overruns", "schedule_lag_s",
-                "peak_schedule_lag_s", "head_speed_kmh", "peak_draft_kN", "peak_buff_kN",
+    for key in ("achieved_real_time_factor", "chunk_overruns", "schedule_dropped_s",
+                "schedule_lag_s", "peak_schedule_lag_s", "head_speed_kmh", "peak_draft_kN", "peak_buff_kN",
                 "stop_time_s"):
         assert key in diag, key
     assert diag["_level"] in (DiagnosticStatus.OK, DiagnosticStatus.WARN)
