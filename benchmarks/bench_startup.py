@@ -3,7 +3,9 @@
 Each run is a fresh process (as a user starts it) with its own numba cache folder. The first run
 with an empty cache starts at once with the kernels as plain Python while a background process
 compiles them (the default); the benchmark then waits for that compile to end, and the later
-runs load the kernels. For comparison, a first run that compiles before it runs
+runs load the kernels, each in its own process (``LTD_BRAKE_SERVER=off``) and then handed to
+the resident server that the first run started (the default; its socket folder is the
+benchmark's own, and it is stopped at the end). For comparison, a first run that compiles before it runs
 (``LTD_BRAKE_FIRST_RUN=wait``, another empty cache) times the compile itself. Printed, one
 Markdown table: the whole command's wall time, the start-up the command reports, the real-time
 factor it reports (plain Python for the first run), and whether it says it compiles; then the
@@ -50,7 +52,10 @@ def main() -> None:
     exe = shutil.which("ltd-brake") or sys.exit("ltd-brake is not on PATH (./dev.sh run ...)")
     argv = [exe, "simulate", "--scenario", "6"]
     caches = [tempfile.mkdtemp(prefix="ltd-brake-numba-") for _ in range(2)]
-    env = dict(os.environ, NUMBA_CACHE_DIR=caches[0], LTD_BRAKE_FIRST_RUN="background")
+    sockets = tempfile.mkdtemp(prefix="ltds-", dir="/tmp")
+    env = dict(os.environ, NUMBA_CACHE_DIR=caches[0], LTD_BRAKE_FIRST_RUN="background",
+               LTD_BRAKE_SERVER="auto", LTD_BRAKE_SERVER_DIR=sockets)
+    alone = dict(env, LTD_BRAKE_SERVER="off")
     try:
         rows = []
         start = time.perf_counter()
@@ -62,17 +67,24 @@ def main() -> None:
         waited = time.perf_counter() - ended
         compile_s = time.perf_counter() - start
         for k in range(1, 1 + args.warm):
-            wall, text = _run(argv, env)
-            rows.append((f"later #{k}", wall, *_figures(text),
+            wall, text = _run(argv, alone)
+            rows.append((f"later #{k}, in its own process", wall, *_figures(text),
                          "compiling the simulation kernels" in text))
-        wait_env = dict(env, NUMBA_CACHE_DIR=caches[1], LTD_BRAKE_FIRST_RUN="wait")
+        _run([exe, "server", "start"], env)  # the first run started it: wait until it answers
+        for k in range(1, 1 + args.warm):
+            wall, text = _run(argv, env)
+            assert "run by the ltd-brake server" in text, text
+            rows.append((f"later #{k}, by the resident server", wall, *_figures(text),
+                         "compiling the simulation kernels" in text))
+        wait_env = dict(alone, NUMBA_CACHE_DIR=caches[1], LTD_BRAKE_FIRST_RUN="wait")
         wall, text = _run(argv, wait_env)
         rows.append(("first, compiling before it runs (LTD_BRAKE_FIRST_RUN=wait)", wall,
                      *_figures(text), "compiling the simulation kernels" in text))
         imp, _ = _run([sys.executable, "-c", "import ltd_brake_ros.cli.main"], env)
     finally:
-        for cache in caches:
-            shutil.rmtree(cache, ignore_errors=True)
+        subprocess.run([exe, "server", "stop"], env=env, capture_output=True)
+        for folder in (*caches, sockets):
+            shutil.rmtree(folder, ignore_errors=True)
     print("| run | whole command [s] | reported start-up [s] | real-time factor | says it "
           "compiles |")
     print("|---|---:|---:|---:|---|")

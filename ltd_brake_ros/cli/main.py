@@ -18,7 +18,10 @@ import threading
 from .options import CONVENTIONS
 
 #: The verbs in the order ``ltd-brake --help`` lists them, each the module of its name.
-VERBS = ("simulate", "validate", "calibrate", "report", "recover", "campaign")
+VERBS = ("simulate", "validate", "calibrate", "report", "recover", "campaign", "server")
+#: The verbs a resident server runs (as :data:`ltd_brake_ros.cli.resident.SERVED`, without importing
+#: it first).
+SERVED = ("simulate",)
 
 
 def build_parser(verb: str | None = None) -> argparse.ArgumentParser:
@@ -46,7 +49,7 @@ def build_parser(verb: str | None = None) -> argparse.ArgumentParser:
     if verb in VERBS:
         modules = [importlib.import_module(f".{verb}", __package__)]
     else:
-        from . import calibrate, campaign, recover, report, simulate, validate  # noqa: F401
+        from . import calibrate, campaign, recover, report, server, simulate, validate  # noqa: F401
 
         modules = [sys.modules[f"{__package__}.{name}"] for name in VERBS]
     for module in modules:
@@ -77,8 +80,31 @@ def main(argv: list[str] | None = None) -> int:
         an output that cannot be written, 3 simulation failure, 4 a comparison inconclusive
         (``campaign report --against``), 130 interrupted, 143 terminated (SIGTERM), 141 the
         output was closed early (as a shell reports a writer ended by SIGPIPE).
+
+    Notes
+    -----
+    Started as the program (``argv`` None), a ``simulate`` command is run by this
+    installation's resident server if one answers (:mod:`ltd_brake_ros.cli.resident`), and starts
+    one for the next command otherwise.
     """
+    program = argv is None  # started as ltd-brake: a resident server may run the command
     argv = sys.argv[1:] if argv is None else argv
+    if program and argv and argv[0] in SERVED:
+        from .resident import forward
+
+        status = forward(argv)
+        if status is not None:
+            return status
+    try:
+        return _main(argv)
+    finally:
+        if program and argv and argv[0] in SERVED:
+            from .resident import spawn
+
+            spawn()  # for the next command (none if one runs, or if it is turned off)
+
+
+def _main(argv: list[str]) -> int:
     # a command line starting with a verb builds that verb alone: the others' options (and the
     # modules their help names) cost start-up time and cannot appear on it
     parser = _parser(argv[0] if argv and argv[0] in VERBS else None)

@@ -208,6 +208,7 @@ def run(args: argparse.Namespace) -> int:
         out["non_physical"] = verdicts.non_physical
         out["startup_s"] = startup_s
         out["plain_python_s"] = sim.plain_python_s
+        out["served_by"] = _served_by()
         out["adhesion"] = sim.adhesion.name
         out["wheel_slides"] = sim.wheel_slides()
         out["warnings"] = model_warnings(sim)
@@ -234,15 +235,28 @@ def run(args: argparse.Namespace) -> int:
     _print_slides(sim)
     _print_heat(sim)
     _print_verdicts(verdicts)
-    print(f"start-up         {startup_s:.2f} s " + (
-        "(the simulation kernels compile in the background: a first run)"
-        if sim.plain_python_s > 0.0 else
-        "(compiling or loading the simulation kernels, once per process)"))
+    print(f"start-up         {startup_s:.2f} s {_start_up_part(sim)}")
     print(f"cost             {res.wall_time_s * 1e3:.0f} ms wall, {res.real_time_factor:.0f}x "
           f"real time{_plain_part(sim)}, {res.steps} steps ({res.rejected_steps} rejected, "
           f"shortest {res.smallest_step_s * 1e3:.2g} ms), {res.newton_iterations_per_step:.2f} "
           "Newton iterations per step")
     return 0
+
+
+def _served_by() -> int | None:
+    """The resident server's process id if it runs this command, else None."""
+    from . import resident
+
+    return resident.SERVED_BY
+
+
+def _start_up_part(sim) -> str:
+    """What the start-up of the cost line was."""
+    if sim.plain_python_s > 0.0:
+        return "(the simulation kernels compile in the background: a first run)"
+    if _served_by() is not None:
+        return f"(run by the ltd-brake server, process {_served_by()}: kernels loaded there)"
+    return "(compiling or loading the simulation kernels, once per process)"
 
 
 def _plain_part(sim) -> str:
