@@ -30,6 +30,7 @@ class _Server:
 
     def __init__(self, path: Path, idle_s: float, lock: int):
         self.path, self.idle_s, self.key, self.lock = path, idle_s, path.stem, lock
+        self.pid = os.getpid()
         # stopping: take no more commands; terminating (a signal): end the runs too
         self.started, self.served = time.time(), 0
         self.stopping = self.terminating = False
@@ -221,13 +222,10 @@ def _child(message: dict, fds: list[int], server: _Server, conn: socket.socket) 
         signal.signal(signal.SIGINT, signal.default_int_handler)
         signal.pthread_sigmask(signal.SIG_UNBLOCK, COMMAND_SIGNALS)
         server.close_in_child(conn)
-        parent = os.getppid()
-        if sys.platform.startswith("linux"):
-            import ctypes
+        from ..studies.parallel import _orphan_guard
 
-            ctypes.CDLL(None).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG: ends with the server
-        if os.getppid() != parent:
-            os._exit(1)
+        parent = server.pid
+        _orphan_guard(parent)  # the run ends with its server
         for target, fd in enumerate(fds):
             os.dup2(fd, target)
         for fd in fds:
