@@ -19,9 +19,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from .inputs import (BrakeParams, Consist, CouplerLUT, InputError, Scenario, Track, get_scenario,
-                     load_brake_params, load_consist, load_coupler_lut, load_track,
-                     resolve_config_path)
+from .inputs import (BrakeParams, Consist, CouplerLUT, InputError, Scenario, Track,
+                     default_brake_params, get_scenario, load_brake_params, load_consist,
+                     load_coupler_lut, load_track, resolve_config_path)
 
 #: Accepted initial speeds [km/h].
 SPEED_RANGE_KMH = (0.0, 400.0)
@@ -120,7 +120,8 @@ def resolve_run_spec(consist: str | None = None, *, scenario: str | int | None =
     speed_kmh : float, optional
         Initial speed [km/h]; ``None`` (or negative) takes the scenario's.
     params_file, lut_file, track_file : str, optional
-        Files; ``None`` or empty takes the shipped default.
+        Files; ``None`` or empty takes the shipped default (brake parameters:
+        :func:`~ltd_brake_ros.inputs.default_brake_params` of the train).
     v_th_mm_s : float, optional
         Eq. 3 threshold speed overriding the coupler table's [mm/s].
     start_chainage_m : float, optional
@@ -161,7 +162,8 @@ def resolve_run_spec(consist: str | None = None, *, scenario: str | int | None =
     lo, hi = SPEED_RANGE_KMH
     if not (math.isfinite(speed) and lo <= speed <= hi):
         raise RunSpecError("speed_kmh", f"must be between {lo:g} and {hi:g} km/h, got {speed}")
-    params = _file("brake_params", load_brake_params, params_file or None)
+    params = (_file("brake_params", load_brake_params, params_file) if params_file
+              else default_brake_params(train))
     lut = _file("coupler_lut", load_coupler_lut, lut_file or None, v_th_mm_s)
     if track_file:
         track = _file("track", load_track, track_file, start_chainage_m)

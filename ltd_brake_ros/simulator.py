@@ -32,7 +32,8 @@ import threading
 
 import numpy as np
 
-from .inputs import BrakeParams, Consist, CouplerLUT, InputError, Track
+from .inputs import (BrakeParams, Consist, CouplerLUT, InputError, Track, default_brake_params,
+                     model_warnings)
 from .physics import brakes as brakes_module
 from .physics import couplers, kernel
 from .physics.brakes import adhesion as adhesion_module
@@ -57,11 +58,13 @@ from .sim_types import (Commands, CouplerExcursions, CouplerPeaks, Event,  # noq
 class _Compiled:
     """A train compiled for the kernel, its limits and the kernel bound for its arguments."""
 
-    __slots__ = ("consist", "model", "limits", "run_loop", "braked_weight_percent")
+    __slots__ = ("consist", "model", "limits", "run_loop", "braked_weight_percent", "warnings")
 
-    def __init__(self, consist: Consist, model: kernel.TrainModel, limits: TrainLimits):
+    def __init__(self, consist: Consist, model: kernel.TrainModel, limits: TrainLimits,
+                 warnings: tuple = ()):
         self.consist, self.model, self.limits, self.run_loop = consist, model, limits, None
         self.braked_weight_percent: float | None = None  # Eq. 11, once asked for
+        self.warnings = warnings
 
 
 #: Trains compiled by :func:`_compiled`, most recent last.
@@ -154,7 +157,8 @@ def _compiled(consist: Consist, params: BrakeParams, coupler, track: Track, resi
     model = Simulator._compile(consist, params, coupler, track, resistance, brakes_on, adhesion)
     hit = _Compiled(consist, model, train_limits(consist, coupler,
                                                  friction_arrays=model.friction,
-                                                 coupler_arrays=model.couplers))
+                                                 coupler_arrays=model.couplers),
+                    tuple(model_warnings(consist, params, coupler)))
     if key is not None:
         with _COMPILED_LOCK:
             _COMPILED[key] = hit
@@ -173,8 +177,9 @@ class Simulator:
     speed_kmh : float
         Initial speed of every vehicle [km/h].
     params : BrakeParams, optional
-        Brake model and its parameters (default: the empirical UIC model with Table 3 and the
-        paper's K0).
+        Brake model and its parameters (default:
+        :func:`~ltd_brake_ros.inputs.default_brake_params`, the paper's empirical model with
+        Table 3 and its K0 for trains within its range, the UIC brake pipe beyond).
     lut : dataclass, optional
         Parameters of a registered coupler model, e.g. a :class:`CouplerLUT` (default: the
         shipped buffer-hook table).
@@ -227,6 +232,9 @@ class Simulator:
         Strength and adhesion limits of the train (consist ``limits``, the coupler model's,
         the standard defaults: :func:`~ltd_brake_ros.verdicts.train_limits`); an event is
         raised when one is first exceeded, :meth:`verdicts` tells all.
+    model_warnings : tuple of str
+        Where the run leaves its models' validated ranges (empty: inside them;
+        :func:`~ltd_brake_ros.inputs.model_warnings`): every output of a run repeats them.
     """
 
     def __init__(self, consist: Consist, speed_kmh: float, params: BrakeParams | None = None,
@@ -241,7 +249,7 @@ class Simulator:
             from .inputs import load_coupler_lut
 
             lut = load_coupler_lut()
-        params = params or BrakeParams()
+        params = params or default_brake_params(consist)
         if not (math.isfinite(speed_kmh) and 0.0 <= speed_kmh <= 400.0):
             raise InputError("speed_kmh", "", f"must be between 0 and 400 km/h, got {speed_kmh}")
         if not (math.isfinite(step_s) and 1e-5 <= step_s <= 0.5):
@@ -274,6 +282,7 @@ class Simulator:
                                        self.tolerance_m_s, self.local_steps)
         self.fext_N = np.zeros(self.n)
         self.limits: TrainLimits = compiled.limits
+        self.model_warnings: tuple = compiled.warnings
         # what the state at time 0 is built from, anew at each reset (as cheap as a copy)
         self._initial = (self.n, self.speed_kmh / KMH_PER_MS, self.model.brakes, self.limits,
                          thermal.initial_temperatures(self.model.thermal))

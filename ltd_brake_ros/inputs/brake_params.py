@@ -8,7 +8,12 @@ from ..physics import brakes
 from ..physics.brakes import BrakeParams
 from .schema import Fields, file_keys, load_once, params_from_fields, resolve_config_path
 
-__all__ = ["BrakeParams", "brake_params_from_mapping", "load_brake_params"]
+__all__ = ["BrakeParams", "DEFAULT_FILES", "brake_params_from_mapping", "default_brake_params",
+           "load_brake_params"]
+
+#: The shipped brake-parameter files a train runs with when none is named: the paper's
+#: empirical model, then the UIC brake pipe.
+DEFAULT_FILES = ("brake_params/paper.yaml", "brake_params/uic_brake_pipe.yaml")
 
 
 def brake_params_from_mapping(data: Any, source: str) -> BrakeParams:
@@ -56,3 +61,57 @@ def load_brake_params(path: str | os.PathLike | None = None) -> BrakeParams:
     # read once per version of the file: the parameters are immutable
     return load_once(resolve_config_path(path or "brake_params/paper.yaml"),
                      brake_params_from_mapping)
+
+
+def default_brake_params(consist) -> BrakeParams:
+    """The brake parameters a train runs with when none are named.
+
+    The paper's empirical model (``brake_params/paper.yaml``) within its validated range
+    (:func:`~ltd_brake_ros.physics.brakes.validity`: trains up to 500 m), the UIC brake pipe
+    (``brake_params/uic_brake_pipe.yaml``) beyond, also where no model covers the train (a
+    run says so: :func:`model_warnings`).
+
+    Parameters
+    ----------
+    consist : Consist
+
+    Returns
+    -------
+    BrakeParams
+        Its ``source`` names the file and why it was chosen.
+    """
+    empirical, pipe = (load_brake_params(f) for f in DEFAULT_FILES)
+    outside = brakes.validity(consist, empirical)
+    if not outside:
+        return empirical
+    return BrakeParams(pipe.pneumatic, pipe.friction, f"{pipe.source} (the default beyond the "
+                       "empirical model's range)", thermal=pipe.thermal)
+
+
+def model_warnings(consist, params: BrakeParams, coupler=None) -> list[str]:
+    """Where a run of ``consist`` leaves its models' validated ranges (empty: inside them).
+
+    The brake model's range (:func:`~ltd_brake_ros.physics.brakes.validity`), a note when no
+    brake model covers the train, and the coupler model's (its buffers' declared end force,
+    :func:`~ltd_brake_ros.physics.couplers.validity`).
+
+    Parameters
+    ----------
+    consist : Consist
+    params : BrakeParams
+    coupler : dataclass, optional
+        The run's coupler model parameters.
+
+    Returns
+    -------
+    list of str
+    """
+    from ..physics import couplers
+
+    out = brakes.validity(consist, params)
+    if out and all(brakes.validity(consist, load_brake_params(f)) for f in DEFAULT_FILES):
+        out.append("no brake model covers this train: the brake pipe runs it (the default "
+                   "beyond the empirical model's range); its results are an extrapolation")
+    if coupler is not None:
+        out += couplers.validity(coupler)
+    return out

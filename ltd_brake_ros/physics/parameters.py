@@ -152,7 +152,8 @@ def out_of_range(value: float, lo: float | None, hi: float | None, lo_open: bool
 def check(params) -> None:
     """Check every declared field of a model's ``Params`` against its declaration.
 
-    Numbers must be finite (or equal their default, e.g. an unknown strength of inf) and
+    Numbers must be finite (or equal their default, e.g. an unknown strength of inf, or a
+    value not given, NaN, where that is the default) and
     within the declared range; sequences must hold finite numbers within it; flags must be
     true or false.
 
@@ -183,7 +184,8 @@ def check(params) -> None:
             where = key if i is None else f"{key}[{i}]"
             if isinstance(item, bool) or not isinstance(item, (int, float)):
                 raise CompileError(where, f"must be a number, got {item!r}")
-            if i is None and item == default:
+            if i is None and (item == default or (math.isnan(item) and isinstance(default, float)
+                                                   and math.isnan(default))):
                 continue
             reason = out_of_range(float(item), spec.lo, spec.hi, spec.lo_open, spec.scale)
             if reason:

@@ -16,9 +16,7 @@ def model_warnings(sim) -> list[str]:
     -------
     list of str
     """
-    from ..physics import brakes
-
-    return brakes.validity(sim.consist, sim.params)
+    return list(sim.model_warnings)
 
 
 def run_metadata(sim, *, scenario=None, parameters: dict | None = None, **extra) -> dict:

@@ -197,8 +197,8 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
     SimulationError
         A step failed, or the train had not stopped after ``max_time_s``.
     """
-    sim = Simulator(consist, speed_kmh, params or load_brake_params(), lut or load_coupler_lut(),
-                    track, step_s=step_s, tolerance_m_s=tolerance_m_s, adhesion=adhesion)
+    sim = Simulator(consist, speed_kmh, params, lut or load_coupler_lut(), track, step_s=step_s,
+                    tolerance_m_s=tolerance_m_s, adhesion=adhesion)
     start = time.perf_counter()
     commands: Commands | None = Commands(emergency=True)
     if group:
@@ -276,8 +276,8 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
     Simulator
         The simulator at the end of the run (its counters, peaks and events describe it).
     """
-    sim = Simulator(consist, speed_kmh, params or load_brake_params(), lut or load_coupler_lut(),
-                    track, step_s=step_s, tolerance_m_s=tolerance_m_s, adhesion=adhesion)
+    sim = Simulator(consist, speed_kmh, params, lut or load_coupler_lut(), track, step_s=step_s,
+                    tolerance_m_s=tolerance_m_s, adhesion=adhesion)
     end = script.duration_s if script.duration_s is not None else max_time_s
     state: dict = {}
     k = 0

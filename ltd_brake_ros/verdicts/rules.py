@@ -118,6 +118,8 @@ CRITERIA = {
                           "every coupler, all speeds"),
     "endurable_lcf": Rule("Endurable longitudinal compressive force", "buff force", "coupler",
                           "kN", "FAIL", "couplers of vehicles that give one, all speeds"),
+    "buffer_limit_state": Rule("Within the buffers' end force", "buff force", "coupler", "kN",
+                               "FAIL", "every coupler, all speeds"),
     "coupler_travel": Rule("Within the coupler's travel", "deflection beyond the travel",
                            "coupler", "mm", "FAIL", "every coupler, all speeds"),
     "adhesion": Rule("Mean utilised adhesion", "mean brake force at the rails / weight",
@@ -149,6 +151,7 @@ _DEFAULT_ORIGIN = {
     "adhesion_low_speed": "information: a wet rail's adhesion, Curtius-Kniffler x 0.6 "
                           "(secondary sources), never a failure",
     "coupler_travel": "the coupler model's valid range",
+    "buffer_limit_state": "not assessed: the coupler model's buffer end force is not known",
     "standstill_holding": "what a vehicle at rest holds: its kinetic brake force at rest, or "
                           "with the brake applied 0.30 m g at full application (dry-rail "
                           "adhesion at rest, secondary sources; the clamped brake assumed to "
@@ -192,6 +195,10 @@ class TrainLimits:
     wheel_temperature_K : ndarray
         Per vehicle, the wheel temperature that earns a warning [K]; inf where not assessed
         (no block brakes; empty: none assessed).
+    buffer_limit_N : ndarray
+        Per coupler, the buffers' limit state: twice the declared end force of one side buffer
+        [N] (:func:`~ltd_brake_ros.physics.couplers.buffer_limit`); beyond it the run is
+        non-physical (empty: not assessed).
     """
 
     draft_strength_N: np.ndarray
@@ -206,6 +213,7 @@ class TrainLimits:
     rotating_mass_kg: np.ndarray = field(default_factory=lambda: np.zeros(0))
     travel_mm: tuple = (-math.inf, math.inf)
     wheel_temperature_K: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    buffer_limit_N: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def of(self, criterion: str) -> np.ndarray:
         """The per-coupler or per-vehicle limits of a criterion."""
@@ -213,6 +221,9 @@ class TrainLimits:
         return {"draft_strength": self.draft_strength_N, "buff_strength": self.buff_strength_N,
                 "endurable_lcf": self.endurable_lcf_N, "adhesion": self.adhesion_limit,
                 "coupler_travel": np.zeros(self.draft_strength_N.size),
+                "buffer_limit_state": (self.buffer_limit_N
+                                       if self.buffer_limit_N.size == self.draft_strength_N.size
+                                       else np.full(self.draft_strength_N.size, math.inf)),
                 "adhesion_at_speed": np.full(n, ADHESION_AT_SPEED_LIMIT),
                 "adhesion_low_speed": np.full(n, math.inf),
                 "standstill_holding": np.full(n, math.inf),
@@ -292,6 +303,13 @@ def train_limits(consist, coupler_params=None, *, adhesion_limit: float | None =
     o_adh = {"consist" if x.adhesion_limit is not None else "default" for x in lims}
     travel = (-math.inf, math.inf)
     o_travel = "no coupler"
+    nc = max(len(consist.vehicles) - 1, 0)
+    buffer_limit, o_buffer = np.zeros(0), _DEFAULT_ORIGIN["buffer_limit_state"]
+    if coupler_params is not None:
+        from ..physics import couplers
+
+        state = couplers.buffer_limit(coupler_params, coupler_arrays)
+        buffer_limit, o_buffer = np.full(nc, state.coupling_force_N), state.origin
     if coupler_arrays is not None:
         travel = (float(coupler_arrays.valid_lo_m) * 1e3, float(coupler_arrays.valid_hi_m) * 1e3)
         end = getattr(coupler_params, "solid_end_force_N", None)
@@ -305,6 +323,7 @@ def train_limits(consist, coupler_params=None, *, adhesion_limit: float | None =
               "buff_strength": _origin_text("buff_strength", o_buff),
               "endurable_lcf": _origin_text("endurable_lcf", o_lcf),
               "coupler_travel": o_travel,
+              "buffer_limit_state": o_buffer,
               "adhesion": (_origin_text("adhesion", o_adh) if adhesion_limit is None else
                            "campaign file" + ("; consist limits" if "consist" in o_adh else "")),
               "adhesion_at_speed": _DEFAULT_ORIGIN["adhesion_at_speed"],
@@ -320,7 +339,7 @@ def train_limits(consist, coupler_params=None, *, adhesion_limit: float | None =
     rot = np.array([(v.inertia_factor - 1.0) * v.mass_kg for v in vs], float)
     wheel = np.where(blocks, WHEEL_TEMPERATURE_LIMIT_K, math.inf)
     return TrainLimits(draft, buff, lcf, adhesion, weight, origin, braked, blocks, full, rot,
-                       travel, wheel)
+                       travel, wheel, buffer_limit)
 
 
 def limits_metadata(limits: TrainLimits) -> dict:
@@ -349,6 +368,7 @@ def limits_metadata(limits: TrainLimits) -> dict:
                                   for x in limits.travel_mm],
             "wheel_temperature_K": [None if not math.isfinite(x) else x
                                     for x in limits.wheel_temperature_K.tolist()],
+            "buffer_limit_kN": kn(limits.buffer_limit_N),
             "origin": dict(limits.origin)}
 
 
@@ -408,12 +428,14 @@ def limits_from_metadata(meta, n_vehicles: int) -> TrainLimits | None:
         # recordings made before the wheels' limit was stored: the criterion is not assessed
         hot = arr("wheel_temperature_K", n_vehicles) if "wheel_temperature_K" in meta \
             else np.zeros(0)
+        # recordings made before the buffers' limit state was stored: not assessed
+        buffers = arr("buffer_limit_kN", nc, 1e3) if "buffer_limit_kN" in meta else np.zeros(0)
         return TrainLimits(arr("draft_strength_kN", nc, 1e3), arr("buff_strength_kN", nc, 1e3),
                            arr("endurable_lcf_kN", nc, 1e3), arr("adhesion_limit", n_vehicles),
                            arr("mass_t", n_vehicles, 1e3 * G),
                            {str(k): str(v) for k, v in origin.items()}
                            if isinstance(origin, dict) else {}, braked, blocks, full, rot,
-                           travel, hot)
+                           travel, hot, buffers)
     except (KeyError, TypeError, ValueError, OverflowError):
         return None
 
@@ -438,6 +460,8 @@ def default_coupler_limits(n_vehicles: int) -> TrainLimits:
                         "buff_strength": _DEFAULT_ORIGIN["buff_strength"],
                         "endurable_lcf": _DEFAULT_ORIGIN["endurable_lcf"],
                         "coupler_travel": "not assessed: the recording holds no coupler travel",
+                        "buffer_limit_state": "not assessed: the recording holds no buffer end "
+                                              "force",
                         "adhesion": none, "adhesion_at_speed": none,
                         "adhesion_low_speed": none, "standstill_holding": none,
                         "wheel_temperature": none})

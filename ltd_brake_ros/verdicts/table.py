@@ -9,8 +9,12 @@ import numpy as np
 from .rules import (ADHESION_AT_SPEED_LIMIT, CRITERIA, MEAN_ADHESION_MIN_INITIAL_KMH, Rule,
                     TrainLimits, wet_rail_adhesion)
 
-__all__ = ["Criterion", "Exceedance", "FLAG_NAMES", "VehicleDemand", "Verdicts",
-           "diagnostic_values", "flags", "judge"]
+__all__ = ["Criterion", "Exceedance", "FLAG_NAMES", "NON_PHYSICAL_CRITERIA", "VehicleDemand",
+           "Verdicts", "diagnostic_values", "flags", "judge"]
+
+#: The criteria whose exceedance marks a run non-physical, in order of precedence: a coupling
+#: beyond its buffers' limit state, or beyond its coupler model's travel.
+NON_PHYSICAL_CRITERIA = ("buffer_limit_state", "coupler_travel")
 
 
 def _amount(unit: str, value: float, limit: float) -> str:
@@ -226,8 +230,51 @@ class Verdicts:
 
     @property
     def non_physical(self) -> bool:
-        """A coupler went beyond its travel: the forces of the run are not physical."""
-        return any(c.name == "coupler_travel" and c.exceedances for c in self.criteria)
+        """A coupling went beyond its buffers' limit state or its coupler model's travel: the
+        forces of the run there are not physical."""
+        return any(c.name in NON_PHYSICAL_CRITERIA and c.exceedances for c in self.criteria)
+
+    @property
+    def non_physical_detail(self) -> dict | None:
+        """The run's non-physical mark: the first coupling beyond a limit state, when, its
+        worst force or excursion, and how many couplings went beyond (None: none did).
+
+        Returns
+        -------
+        dict or None
+            ``criterion``, ``coupler``, ``time_s`` (when it first went beyond [s]),
+            ``force_kN`` and ``limit_kN`` (its worst buff force and the limit; None for an
+            excursion beyond the travel, then ``beyond_mm``), ``couplings`` (how many went
+            beyond either).
+        """
+        rows = [c for c in self.criteria if c.name in NON_PHYSICAL_CRITERIA and c.exceedances]
+        if not rows:
+            return None
+        first = min((e for c in rows for e in c.exceedances),
+                    key=lambda e: (e.first_time_s, NON_PHYSICAL_CRITERIA.index(e.criterion)))
+        force = CRITERIA[first.criterion].unit == "kN"
+        return {"criterion": first.criterion, "coupler": first.number,
+                "time_s": first.first_time_s,
+                "force_kN": first.value / 1e3 if force else None,
+                "limit_kN": first.limit / 1e3 if force else None,
+                "beyond_mm": None if force else first.value,
+                "couplings": len({e.number for c in rows for e in c.exceedances})}
+
+    @property
+    def non_physical_line(self) -> str | None:
+        """:attr:`non_physical_detail` as one line (None: the run is physical)."""
+        d = self.non_physical_detail
+        if d is None:
+            return None
+        if d["force_kN"] is not None:
+            what = (f"beyond twice its buffers' end force ({d['limit_kN']:.0f} kN) first, at "
+                    f"t = {d['time_s']:.2f} s (worst {d['force_kN']:.0f} kN)")
+        else:
+            what = (f"beyond its coupler model's travel first, at t = {d['time_s']:.2f} s "
+                    f"(worst {d['beyond_mm']:.1f} mm)")
+        return (f"NON-PHYSICAL: coupling {d['coupler']} went {what}; {d['couplings']} "
+                f"coupling(s) did: the forces there are a limit state (buffers solid, the "
+                "underframes loaded), not results")
 
     def __getitem__(self, name: str) -> Criterion:
         return next(c for c in self.criteria if c.name == name)
@@ -236,14 +283,14 @@ class Verdicts:
         """The table as text lines (per criterion the ``most`` worst exceedances)."""
         lines = [line for c in self.criteria for line in c.describe(most)]
         if self.non_physical:
-            lines.append("NON-PHYSICAL: couplers went beyond their travel; the forces beyond it "
-                         "are not results")
+            lines.append(self.non_physical_line)
         return lines
 
     def as_dict(self) -> dict:
         """JSON-serialisable."""
         return {"passed": self.passed, "status": self.status,
                 "non_physical": self.non_physical,
+                "non_physical_detail": self.non_physical_detail,
                 "criteria": [c.as_dict() for c in self.criteria]}
 
 
@@ -353,7 +400,7 @@ def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_k
                        np.asarray(peak_draft_time_s, float), np.asarray(draft_speed_kmh, float),
                        first("draft_strength", draft.size), 1,
                        origin.get("draft_strength", ""))]
-    for name in ("buff_strength", "endurable_lcf"):
+    for name in ("buff_strength", "endurable_lcf", "buffer_limit_state"):
         rows.append(_criterion(name, buff, limits.of(name), np.asarray(peak_buff_time_s, float),
                                np.asarray(buff_speed_kmh, float), first(name, buff.size), 1,
                                origin.get(name, "")))
@@ -463,6 +510,8 @@ def diagnostic_values(verdicts: Verdicts) -> dict:
         status and, beyond a limit, how many couplers or vehicles and the worst.
     """
     out = {"verdicts": verdicts.status}
+    if verdicts.non_physical:
+        out["non_physical"] = verdicts.non_physical_line
     for c in verdicts.criteria:
         text = c.status
         if c.exceedances and c.rule.severity != "INFO":
@@ -477,7 +526,8 @@ def diagnostic_values(verdicts: Verdicts) -> dict:
 
 #: Campaign flag of each FAIL criterion.
 FLAG_NAMES = {"draft_strength": "draft_ok", "buff_strength": "buff_ok",
-              "endurable_lcf": "lcf_ok", "coupler_travel": "travel_ok", "adhesion": "adhesion_ok",
+              "endurable_lcf": "lcf_ok", "coupler_travel": "travel_ok",
+              "buffer_limit_state": "buffers_ok", "adhesion": "adhesion_ok",
               "standstill_holding": "holding_ok"}
 
 

@@ -84,8 +84,8 @@ class SampledDemand:
 
 @jit
 def _scan(t0, v0, t1, v1, nc, peak_draft, t_draft, peak_buff, t_buff, draft_lim, buff_lim,
-          lcf_lim, seen_draft, seen_buff, draft_kmh, buff_kmh, first_draft, first_buff,
-          first_lcf):
+          lcf_lim, state_lim, seen_draft, seen_buff, draft_kmh, buff_kmh, first_draft,
+          first_buff, first_lcf, first_state):
     """The couplers' part of one chunk of :class:`Watch` in one pass (arrays updated in
     place). Returns the number of limits exceeded for the first time."""
     span = t1 - t0
@@ -101,7 +101,7 @@ def _scan(t0, v0, t1, v1, nc, peak_draft, t_draft, peak_buff, t_buff, draft_lim,
                 first_draft[j] = t_draft[j]
                 new += 1
         b = -peak_buff[j]
-        if b > buff_lim[j] or b > lcf_lim[j]:
+        if b > buff_lim[j] or b > lcf_lim[j] or b > state_lim[j]:
             if b > seen_buff[j]:
                 seen_buff[j] = b
                 a = (t_buff[j] - t0) / span if span > 0.0 else 1.0
@@ -111,6 +111,9 @@ def _scan(t0, v0, t1, v1, nc, peak_draft, t_draft, peak_buff, t_buff, draft_lim,
                 new += 1
             if b > lcf_lim[j] and first_lcf[j] < 0.0:
                 first_lcf[j] = t_buff[j]
+                new += 1
+            if b > state_lim[j] and first_state[j] < 0.0:
+                first_state[j] = t_buff[j]
                 new += 1
     return new
 
@@ -170,6 +173,7 @@ class Watch:
         self._buff_seen = np.zeros(nc)
         self.demand = VehicleDemand.empty(n)
         self.standstill_m_s = float(standstill_m_s)
+        self._buffer_limit_N = np.ascontiguousarray(limits.of("buffer_limit_state"), float)
         self._at_speed_force_N = ADHESION_AT_SPEED_LIMIT * limits.weight_N
         # when each vehicle's braked part ended (its speed fell below 5 km/h), and at what speed
         self._mean_end_t = np.zeros(n)
@@ -219,9 +223,10 @@ class Watch:
         new = _scan(t0, v0, t1, v1, self._draft_seen.size, kin.peak_draft_N,
                     kin.peak_draft_time_s, kin.peak_buff_N, kin.peak_buff_time_s,
                     lim.draft_strength_N, lim.buff_strength_N, lim.endurable_lcf_N,
-                    self._draft_seen, self._buff_seen, self.draft_speed_kmh,
-                    self.buff_speed_kmh, first["draft_strength"], first["buff_strength"],
-                    first["endurable_lcf"])
+                    self._buffer_limit_N, self._draft_seen, self._buff_seen,
+                    self.draft_speed_kmh, self.buff_speed_kmh, first["draft_strength"],
+                    first["buff_strength"], first["endurable_lcf"],
+                    first["buffer_limit_state"])
         n = lim.weight_N.size
         if n == vehicle_speed_m_s.size:
             # the kernel keeps each vehicle's brake-force peak above 30 km/h: first seen
@@ -287,10 +292,12 @@ class Watch:
         d = self.demand_of(kin)
         n = d.at_speed.size
         values = {"draft_strength": kin.peak_draft_N[:nc], "buff_strength": -kin.peak_buff_N[:nc],
-                  "endurable_lcf": -kin.peak_buff_N[:nc], "adhesion_at_speed": d.at_speed,
+                  "endurable_lcf": -kin.peak_buff_N[:nc],
+                  "buffer_limit_state": -kin.peak_buff_N[:nc], "adhesion_at_speed": d.at_speed,
                   "wheel_temperature": kin.peak_wheel_temperature_K[:n]}
         speeds = {"draft_strength": self.draft_speed_kmh, "buff_strength": self.buff_speed_kmh,
-                  "endurable_lcf": self.buff_speed_kmh, "adhesion_at_speed": d.at_speed_kmh,
+                  "endurable_lcf": self.buff_speed_kmh,
+                  "buffer_limit_state": self.buff_speed_kmh, "adhesion_at_speed": d.at_speed_kmh,
                   "wheel_temperature": self._wheel_kmh}
         for name in values:
             first, done = self.first_time_s[name], self._reported[name]

@@ -217,11 +217,12 @@ def test_nothing_beyond_a_limit_passes_and_unset_criteria_are_not_assessed():
     table = sim.verdicts()
     assert table.passed and table.status == "PASS" and not table.non_physical
     assert [c.status for c in table.criteria] == ["PASS", "PASS", "not assessed", "PASS",
-                                                  "PASS", "PASS", "INFO", "PASS", "PASS"]
+                                                  "PASS", "PASS", "PASS", "INFO", "PASS",
+                                                  "PASS"]
     assert table["draft_strength"].worst_value == sim.peak_draft_N.max()
     assert verdicts.flags(table) == {"draft_ok": True, "buff_ok": True, "lcf_ok": True,
-                                     "travel_ok": True, "adhesion_ok": True,
-                                     "holding_ok": True}
+                                     "travel_ok": True, "buffers_ok": True,
+                                     "adhesion_ok": True, "holding_ok": True}
     d = table.as_dict()
     assert d["passed"] and d["criteria"][0]["worst_kN"] == pytest.approx(
         sim.peak_draft_N.max() / 1e3)

@@ -99,6 +99,36 @@ FITTABLE = {
 }
 
 
+#: The model's validated range: the longest train [m]. The paper validates it on trains of up to
+#: 424 m (Tables 1-2: E402B + up to 32 Shimmns); 500 m keeps that span with a margin and stays
+#: below the 700 m of European freight trains, where the build-up of the brake along the
+#: train is what the model (one propagation speed, one filling time per brake position, Eq.
+#: 5-7) does not follow. UIC 544-1's correction for long trains is a rule for stopping
+#: distances, cited for them only: it does not validate the in-train forces.
+MAX_LENGTH_M = 500.0
+
+
+def validity(consist, p: Params) -> list[str]:
+    """Where a run of this train leaves the model's validated range (empty: inside it).
+
+    Parameters
+    ----------
+    consist : Consist
+    p : Params
+
+    Returns
+    -------
+    list of str
+        One sentence per reason.
+    """
+    length = float(sum(v.length_m for v in consist.vehicles))
+    if length <= MAX_LENGTH_M:
+        return []
+    return [f"empirical brake model outside its validated range: a {length:.0f} m train, "
+            f"beyond the {MAX_LENGTH_M:.0f} m it is validated for (the paper's trains reach "
+            "424 m); delays, build-up and in-train forces there are an extrapolation"]
+
+
 def check_fields(p: Params) -> None:
     """Combinations no UIC distributor has: G must fill and release more slowly than P
     (UIC 540: P fills in 3-5 s and releases in 15-20 s, G in 18-30 s and 45-60 s).

@@ -33,7 +33,10 @@ A coupler model is one module of this package that defines:
 5. ``CouplerArrays.valid_lo_m``/``valid_hi_m``: the deflections the characteristic is valid for
    (the simulator reports how far a coupler went beyond them); ``Params.draft_strength_N`` and
    ``Params.buff_strength_N``: the strength limits (magnitudes, inf when unknown) that
-   verdicts on a run use.
+   verdicts on a run use; ``Params.buffer_end_force_N`` (:func:`.base.buffer_end_force_field`):
+   the declared end force of one side buffer, its category's, independent of the force curve:
+   a coupling beyond twice it is a limit state and marks the run non-physical
+   (:func:`buffer_limit`, :func:`validity`).
 6. Register: one line in :data:`MODELS` and one branch in :func:`force` (and in
    :func:`force_near` for a model that defines its own).
 7. The contract tests (``test/physics/test_coupler_contract.py``) run over every registered
@@ -42,16 +45,17 @@ A coupler model is one module of this package that defines:
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 from .. import parameters
 from ..equations import jit_inline
 from ..parameters import CompileError
 from . import buffer_draw_gear, linear, lut_hysteresis
-from .base import CouplerArrays
+from .base import (BUFFER_SIDES, DEFAULT_BUFFER_END_FORCE_N, DEFAULT_BUFFER_END_FORCE_ORIGIN,
+                   CouplerArrays, buffer_end_force_declared, buffer_end_force_N)
 
-__all__ = ["CompileError", "CouplerArrays", "DEFAULT_MODEL", "MODELS", "force", "force_near",
-           "force_of", "model_of"]
+__all__ = ["BufferLimit", "CompileError", "CouplerArrays", "DEFAULT_MODEL", "MODELS",
+           "buffer_limit", "force", "force_near", "force_of", "model_of", "validity"]
 
 #: Registered coupler models by name.
 MODELS = {m.NAME: m for m in (
@@ -137,3 +141,98 @@ def compile(params) -> CouplerArrays:  # noqa: A001 - the contract's name
         A precondition of the model does not hold.
     """
     return model_of(params).compile(params)
+
+
+class BufferLimit(NamedTuple):
+    """The buffers' limit state of a coupler model: where its elastic force ends.
+
+    Attributes
+    ----------
+    end_force_N : float
+        Declared end force of one side buffer [N].
+    coupling_force_N : float
+        The limit per coupling, :data:`~.base.BUFFER_SIDES` x ``end_force_N`` (both buffers of
+        each side solid) [N]: beyond it the underframes carry the force.
+    declared : bool
+        The coupler file declares the end force (False: the category default is assumed).
+    reached_at_m : float
+        Buff deflection at which the loading curve reaches ``coupling_force_N`` before the
+        buffers' full stroke [m] (negative); NaN when it does not.
+    full_stroke_m : float
+        The buffers' full stroke, the buff end of the model's valid range [m] (-inf: none).
+    origin : str
+        Where the limit comes from, for the verdicts' source line.
+    """
+
+    end_force_N: float
+    coupling_force_N: float
+    declared: bool
+    reached_at_m: float
+    full_stroke_m: float
+    origin: str
+
+
+#: Deflection step of :func:`buffer_limit`'s scan of the loading curve [m].
+_SCAN_STEP_M = 5e-4
+
+
+def buffer_limit(params, arrays: CouplerArrays | None = None) -> BufferLimit:
+    """The buffers' limit state of a coupler model's parameters.
+
+    Parameters
+    ----------
+    params : dataclass
+        A registered coupler model's ``Params``.
+    arrays : CouplerArrays, optional
+        Its compiled arrays (default: compiled here).
+
+    Returns
+    -------
+    BufferLimit
+    """
+    if arrays is None:
+        arrays = model_of(params).compile(params)
+    end = buffer_end_force_N(params)
+    limit = BUFFER_SIDES * end
+    declared = buffer_end_force_declared(params)
+    stroke = float(arrays.valid_lo_m)
+    # the loading curve in buff: compressing faster than Eq. 3's band
+    rate = -2.0 * float(arrays.band_m_s)
+    reached = math.nan
+    deepest = stroke if math.isfinite(stroke) else -0.5
+    for k in range(1, int(-deepest / _SCAN_STEP_M) + 1):
+        d = -k * _SCAN_STEP_M
+        if -force_of(arrays, d, rate)[0] > limit:
+            reached = d
+            break
+    origin = (f"twice the end force of one side buffer per coupling (both buffers of a side "
+              f"solid, the underframe loaded beyond: a limit state, not an elastic buffer "
+              f"force), {limit / 1e3:.0f} kN; "
+              + (f"coupler file: {end / 1e3:.0f} kN per buffer" if declared
+                 else DEFAULT_BUFFER_END_FORCE_ORIGIN))
+    if math.isfinite(reached) and math.isfinite(stroke):
+        origin += (f"; the coupler curve reaches it at {reached * 1e3:.0f} mm, before the "
+                   f"buffers' full stroke ({stroke * 1e3:.0f} mm)")
+    return BufferLimit(end, limit, declared, reached, stroke, origin)
+
+
+def validity(params) -> list[str]:
+    """Where a coupler model's parameters leave what is known of the couplings.
+
+    Parameters
+    ----------
+    params : dataclass
+        A registered coupler model's ``Params``.
+
+    Returns
+    -------
+    list of str
+        One sentence per reason (empty: none).
+    """
+    if buffer_end_force_declared(params):
+        return []
+    source = getattr(params, "source", "") or "the coupler"
+    return [f"{source} declares no buffer end force (buffer_end_force_kN): "
+            f"{DEFAULT_BUFFER_END_FORCE_ORIGIN}; a coupling beyond twice it, "
+            f"{BUFFER_SIDES * DEFAULT_BUFFER_END_FORCE_N / 1e3:.0f} kN, marks the run "
+            "non-physical"]

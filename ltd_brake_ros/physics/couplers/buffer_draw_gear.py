@@ -44,7 +44,7 @@ import numpy as np
 from .. import parameters
 from ..parameters import CompileError, Fittable, parameter
 from . import lut_hysteresis
-from .base import MAX_FORCE_N, MAX_STIFFNESS_N_M, CouplerArrays
+from .base import MAX_FORCE_N, MAX_STIFFNESS_N_M, CouplerArrays, buffer_end_force_field
 
 NAME = "buffer_draw_gear"
 #: Registry id: selects this model's branch of the jitted dispatch.
@@ -97,6 +97,11 @@ class Params:
         Eq. 3 threshold speed between loading and unloading [m/s] (file: ``v_th_mm_s``).
     draft_strength_N, buff_strength_N : float
         Largest draft and buff force the coupling withstands [N] (inf: unknown).
+    buffer_end_force_N : float
+        Declared end force of one side buffer, its category's [N] (file:
+        ``buffer_end_force_kN``; NaN: not declared, :data:`.base.DEFAULT_BUFFER_END_FORCE_N`
+        assumed), independent of the curve's :attr:`curve_end_force_N`: beyond twice it per
+        coupling the run is marked non-physical.
     source : str
         File the values came from.
     """
@@ -130,18 +135,19 @@ class Params:
                                         lo_open=True, key="draft_strength_kN", scale=1e3)
     buff_strength_N: float = parameter(math.inf, "largest buff force withstood, magnitude [kN]",
                                        lo=0.0, lo_open=True, key="buff_strength_kN", scale=1e3)
+    buffer_end_force_N: float = buffer_end_force_field()
     source: str = ""
 
     @property
-    def buffer_end_force_N(self) -> float:
-        """Force of one buffer at the end of its stroke, F_e [N]."""
+    def curve_end_force_N(self) -> float:
+        """Force of one buffer at the end of its stroke on its curve, F_e [N]."""
         s, p, f0 = self.buffer_stroke_m, self.buffer_shape, self.buffer_preload_N
         return f0 + (self.buffer_energy_J - f0 * s) * (p + 1.0) / s
 
     @property
     def solid_end_force_N(self) -> float:
         """Buff force of the interface where its buffers go solid [N] (magnitude)."""
-        return SIDES * self.buffer_end_force_N
+        return SIDES * self.curve_end_force_N
 
     @property
     def draft_end_force_N(self) -> float:
@@ -186,7 +192,7 @@ def curves(params: Params) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         Draft positive; the first and last segments are the solid ends.
     """
     s, p, f0, fe = (params.buffer_stroke_m, params.buffer_shape, params.buffer_preload_N,
-                    params.buffer_end_force_N)
+                    params.curve_end_force_N)
     x = s * np.linspace(0.0, 1.0, _BUFFER_POINTS)[1:] ** 0.5  # denser where the curve bends
     fb = f0 + (fe - f0) * (x / s) ** p
     step = _PRELOAD_STEP_M
@@ -248,7 +254,7 @@ def check(params: Params) -> None:
     d, fl, fu = curves(params)
     if np.abs(fl).max() > MAX_FORCE_N:
         raise CompileError("buffer_energy_kJ", f"the buffers' end force "
-                           f"{params.buffer_end_force_N / 1e3:.0f} kN is beyond "
+                           f"{params.curve_end_force_N / 1e3:.0f} kN is beyond "
                            f"{MAX_FORCE_N / 1e3:.0f} kN per interface")
     slope = np.diff(fl) / np.diff(d)
     if slope.max() > MAX_STIFFNESS_N_M:

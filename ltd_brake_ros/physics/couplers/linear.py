@@ -17,7 +17,7 @@ import numpy as np
 from .. import parameters
 from ..equations import jit_inline
 from ..parameters import REQUIRED, Fittable, parameter
-from .base import MAX_STIFFNESS_N_M, CouplerArrays
+from .base import MAX_STIFFNESS_N_M, CouplerArrays, buffer_end_force_field
 
 NAME = "linear"
 #: Registry id: selects this model's branch of the jitted dispatch.
@@ -44,6 +44,10 @@ class Params:
     draft_strength_N, buff_strength_N : float
         Largest draft and buff force the coupling withstands, magnitudes [N] (files:
         ``draft_strength_kN``, ``buff_strength_kN``; inf: unknown).
+    buffer_end_force_N : float
+        Declared end force of one side buffer [N] (file: ``buffer_end_force_kN``; NaN:
+        not declared, :data:`.base.DEFAULT_BUFFER_END_FORCE_N` assumed): beyond twice it per
+        coupling the run is marked non-physical.
     source : str
         File the values came from.
     """
@@ -61,6 +65,7 @@ class Params:
                                         lo_open=True, key="draft_strength_kN", scale=1e3)
     buff_strength_N: float = parameter(math.inf, "largest buff force withstood, magnitude [kN]",
                                        lo=0.0, lo_open=True, key="buff_strength_kN", scale=1e3)
+    buffer_end_force_N: float = buffer_end_force_field()
     source: str = ""
 
 

@@ -22,7 +22,7 @@ import numpy as np
 from .. import parameters
 from ..equations import jit_inline, jit_inner, lut_segment_near
 from ..parameters import REQUIRED, CompileError, Fittable, parameter
-from .base import MAX_DEFLECTION_M, MAX_FORCE_N, MAX_STIFFNESS_N_M, CouplerArrays
+from .base import MAX_DEFLECTION_M, MAX_FORCE_N, MAX_STIFFNESS_N_M, CouplerArrays, buffer_end_force_field
 
 NAME = "lut_hysteresis"
 #: Registry id: selects this model's branch of the jitted dispatch.
@@ -60,6 +60,10 @@ class Params:
         Buff deflection of the interface at which the buffers go solid [m] (file:
         ``buff_travel_mm``; inf: the table's end): the valid range ends there, and a run
         beyond it is marked non-physical.
+    buffer_end_force_N : float
+        Declared end force of one side buffer [N] (file: ``buffer_end_force_kN``; NaN: not
+        declared, :data:`.base.DEFAULT_BUFFER_END_FORCE_N` assumed): beyond twice it per
+        coupling (both buffers of a side solid) the run is marked non-physical.
     """
 
     deflection_m: tuple[float, ...] = parameter(
@@ -93,6 +97,7 @@ class Params:
                                      "solid, e.g. two 105 mm buffers: 210 [mm] (inf: the "
                                      "table's end)", lo=0.0, lo_open=True, key="buff_travel_mm",
                                      scale=1e-3)
+    buffer_end_force_N: float = buffer_end_force_field()
 
 
 #: Buffers of one coupling interface that a buff deflection compresses in series (one on each
