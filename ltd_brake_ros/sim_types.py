@@ -17,7 +17,6 @@ from .inputs.commands import COMMAND_RANGES
 from .physics import brakes as brakes_module
 from .physics import kernel
 from .physics.brakes.base import EMERGENCY
-from .verdicts import Watch
 
 __all__ = ["Commands", "CouplerExcursions", "CouplerPeaks", "Event", "Excursion",
            "SimulationError", "SimulatorState", "Snapshot"]
@@ -89,10 +88,11 @@ class Event:
     time_s : float
         Simulated time [s].
     kind : str
-        ``brake_applied``, ``brake_released``, ``stopped``, ``coupler_out_of_lut`` or
-        ``limit_exceeded`` (a coupler or vehicle first beyond a limit of
-        :mod:`~ltd_brake_ros.verdicts`: ``criterion``, ``coupler`` or ``vehicle``, the force,
-        demand or temperature, the limit, ``speed_kmh``).
+        ``brake_applied``, ``brake_released``, ``stopped`` (``stop``, its number, with its
+        ``stopping_distance_m`` and ``stop_time_s``), ``settled`` (``settled_time_s``),
+        ``drive_off``, ``coupler_out_of_lut`` or ``limit_exceeded`` (a coupler or vehicle
+        first beyond a limit of :mod:`~ltd_brake_ros.verdicts`: ``criterion``, ``coupler`` or
+        ``vehicle``, the force, demand, temperature or speed, the limit, ``speed_kmh``).
     detail : dict
         Kind-specific values (units in the keys).
     """
@@ -107,6 +107,9 @@ class Event:
         if self.kind == "stopped":
             return (f"t = {self.time_s:.2f} s: train stopped, stopping distance "
                     f"{d['stopping_distance_m']:.1f} m")
+        if self.kind == "settled":
+            return (f"t = {self.time_s:.2f} s: train settled, every vehicle at rest since "
+                    f"t = {d['settled_time_s']:.2f} s")
         if self.kind == "coupler_out_of_lut":
             return (f"t = {self.time_s:.2f} s: coupler {d['coupler']} left the coupler table, "
                     f"{d['beyond_table_mm']:.1f} mm beyond its end within the chunk; forces "
@@ -116,6 +119,9 @@ class Event:
             if "force_kN" in d:
                 what = (f"{_distinct(d['force_kN'], d['limit_kN'], 0)} kN, limit "
                         f"{d['limit_kN']:.0f} kN")
+            elif "limit_kmh" in d:
+                return (f"t = {self.time_s:.2f} s: {element} {d[element]} moved from rest "
+                        f"without traction ({d['speed_kmh']:.3g} km/h): a runaway")
             elif "temperature_K" in d:
                 what = (f"{_distinct(d['temperature_K'], d['limit_K'], 0)} K, limit "
                         f"{d['limit_K']:.0f} K")
@@ -309,7 +315,7 @@ class SimulatorState:
     last_step_s : float
         Last step size [s]; 0 restarts the integrator without history.
     kinematics : KinematicState
-        Displacements, speeds, forces and running extremes (see
+        Displacements, speeds, forces and the current window's running extremes (see
         :class:`~ltd_brake_ros.physics.kernel.KinematicState`).
     brakes : BrakeState
         The brake model's state.
@@ -318,7 +324,7 @@ class SimulatorState:
     stats : ndarray
         Counters, one :data:`~ltd_brake_ros.physics.kernel.STATS_DTYPE` record.
     reported_out_of_range : ndarray of bool
-        Couplers whose excursion beyond their valid range has been reported.
+        Couplers whose excursion beyond their valid range has been reported in this window.
     reported_out_of_range_count : int
         How many of them.
     brake_command : tuple of (float, int)
@@ -327,18 +333,16 @@ class SimulatorState:
         The emergency brake is commanded.
     traction_demand : float
         Traction or dynamic-brake demand, -1 to 1.
-    command_time_s : float or None
-        Time of the brake command the stopping distance counts from [s].
-    command_head_m : float
-        Head displacement at that command [m].
-    command_speed_m_s : float
-        Head speed at that command [m/s].
-    stop_time_s, stopping_distance_m : float or None
-        When the train stopped [s] and the head's travel since the command [m].
     failed : bool
         A step failed; only a reset recovers.
-    watch : Watch or None
-        Follows the verdicts' limits (:mod:`~ltd_brake_ros.verdicts`).
+    phase : int
+        Where the run is: moving, braking, settling, at rest or after a runaway
+        (:mod:`~ltd_brake_ros.stops`).
+    stops : list of OpenStop
+        The run's stops, the latest last (:mod:`~ltd_brake_ros.stops`).
+    window : Window or None
+        The part of the run judged now; ``closed`` the parts before it.
+    closed : list of Window
     """
 
     time_s: float
@@ -351,19 +355,26 @@ class SimulatorState:
     brake_command: tuple = (0.0, EMERGENCY)
     emergency: bool = False
     traction_demand: float = 0.0
-    command_time_s: float | None = None
-    command_head_m: float = 0.0
-    stop_time_s: float | None = None
-    stopping_distance_m: float | None = None
     failed: bool = False
-    command_speed_m_s: float = 0.0
-    watch: Watch | None = None
     reported_out_of_range_count: int = 0
+    phase: int = 0
+    stops: list = field(default_factory=list)
+    window: object = None
+    closed: list = field(default_factory=list)
 
     def copy(self) -> "SimulatorState":
         """An independent copy (arrays copied)."""
+        stops = {id(s): s.copy() for s in self.stops}
+
+        def window(w):
+            new = w.copy()
+            if w.stop is not None:
+                new.stop = stops.get(id(w.stop), w.stop)
+            return new
         return dataclasses.replace(
             self, kinematics=self.kinematics.copy(), brakes=self.brakes.copy(),
             events=self.events.copy(), stats=self.stats.copy(),
             reported_out_of_range=self.reported_out_of_range.copy(),
-            watch=None if self.watch is None else self.watch.copy())
+            stops=[stops[id(s)] for s in self.stops],
+            window=None if self.window is None else window(self.window),
+            closed=[window(w) for w in self.closed])

@@ -41,9 +41,11 @@ from .physics.brakes import friction, thermal
 from .physics.brakes.base import EMERGENCY, OVERCHARGE, SERVICE
 from .physics.constants import KMH_PER_MS, STANDSTILL_M_S
 from .physics.equations import (centre_offsets_m, curve_resistance_N_per_kN, is_plain,
-                                plain_now, train_braked_weight_percent)
+                                plain_now, resistance_coefficients, train_braked_weight_percent)
 from .physics.kernel import Stats  # noqa: F401 (part of this module's interface)
-from .verdicts import TrainLimits, VehicleDemand, Verdicts, Watch, train_limits
+from . import stops
+from .verdicts import REST_ADHESION, TrainLimits, VehicleDemand, Verdicts, Watch, train_limits
+from .verdicts import merge as merge_verdicts
 
 
 #: The dtype the kernel takes forces in.
@@ -137,7 +139,7 @@ def compile_notice(consist: Consist | None = None, params: BrakeParams | None = 
 
 
 def _compiled(consist: Consist, params: BrakeParams, coupler, track: Track, resistance: bool,
-              brakes_on: bool, adhesion=None) -> _Compiled:
+              brakes_on: bool, adhesion=None, rail=None) -> _Compiled:
     """:meth:`Simulator._compile` and the train's limits, once per set of inputs.
 
     The inputs are immutable (a consist is known by its identity, held by the entry so that
@@ -145,7 +147,7 @@ def _compiled(consist: Consist, params: BrakeParams, coupler, track: Track, resi
     only reads it. A simulator built again from the same loaded files (input files are read
     once per version) takes the train compiled before.
     """
-    key = (id(consist), params, coupler, track, resistance, brakes_on, adhesion)
+    key = (id(consist), params, coupler, track, resistance, brakes_on, adhesion, rail)
     try:
         with _COMPILED_LOCK:
             hit = _COMPILED.pop(key, None)
@@ -157,7 +159,7 @@ def _compiled(consist: Consist, params: BrakeParams, coupler, track: Track, resi
     model = Simulator._compile(consist, params, coupler, track, resistance, brakes_on, adhesion)
     hit = _Compiled(consist, model, train_limits(consist, coupler,
                                                  friction_arrays=model.friction,
-                                                 coupler_arrays=model.couplers),
+                                                 coupler_arrays=model.couplers, rail=rail),
                     tuple(model_warnings(consist, params, coupler)))
     if key is not None:
         with _COMPILED_LOCK:
@@ -219,6 +221,10 @@ class Simulator:
         ``dry``, ``wet``, a number, or a curve from
         :func:`~ltd_brake_ros.inputs.adhesion.load_adhesion`); default: off, the brake force
         is never capped, as in the paper's method.
+    rail : str, float or AdhesionCondition, optional
+        The rail condition the adhesion demand is judged against (a warning, never a change
+        of the run; same forms as ``adhesion``); default: ``adhesion`` when given, else a dry
+        rail.
 
     Attributes
     ----------
@@ -244,7 +250,7 @@ class Simulator:
                  newton_rtol: float = kernel.DEFAULT_NEWTON_RTOL,
                  standstill_m_s: float = STANDSTILL_M_S, stick_band_m_s: float = 1e-5,
                  tolerance_m_s: float | None = kernel.DEFAULT_TOLERANCE_M_S,
-                 local_steps: bool = True, adhesion=None):
+                 local_steps: bool = True, adhesion=None, rail=None):
         if lut is None:
             from .inputs import load_coupler_lut
 
@@ -273,14 +279,23 @@ class Simulator:
             self.adhesion = adhesion_module.condition(adhesion)
         except ValueError as exc:
             raise InputError("adhesion", "", str(exc)) from None
+        try:
+            self.rail = adhesion_module.condition(rail) if rail is not None else (
+                self.adhesion if self.adhesion.on else adhesion_module.CONDITIONS["dry"])
+        except ValueError as exc:
+            raise InputError("rail", "", str(exc)) from None
         compiled = self._compiled = _compiled(consist, params, lut, self.track,
-                                              bool(resistance), self._brakes, self.adhesion)
+                                              bool(resistance), self._brakes, self.adhesion,
+                                              self.rail)
         self.model = compiled.model
         self._brake_model = brakes_module.model_of(params.pneumatic)
         self._options = kernel.Options(self.max_newton_iter, self.newton_rtol,
                                        self.standstill_m_s, self.stick_band_m_s,
                                        self.tolerance_m_s, self.local_steps)
         self.fext_N = np.zeros(self.n)
+        # running resistance at rest, Eq. 2's constant term [N] (the holding judgment's)
+        self._rest_resistance = np.array([resistance_coefficients(m, a)[0] for m, a in zip(
+            self.model.train.mass_kg, self.model.train.axles)], float)
         self.limits: TrainLimits = compiled.limits
         self.model_warnings: tuple = compiled.warnings
         # what the state at time 0 is built from, anew at each reset (as cheap as a copy)
@@ -348,11 +363,16 @@ class Simulator:
     def _initial_state(self) -> SimulatorState:
         """A new state at time 0: the initial speed, brakes released, nothing counted."""
         n, v0_m_s, brakes, limits, temperature_K = self._initial
-        return SimulatorState(
+        st = SimulatorState(
             0.0, 0.0, kernel.KinematicState.initial(n, v0_m_s, temperature_K),
             self._brake_model.initial_state(brakes), brakes_module.CommandEvents.empty(),
-            kernel.new_stats(), np.zeros(max(n - 1, 1), bool),
-            watch=Watch(limits, self.standstill_m_s))
+            kernel.new_stats(), np.zeros(max(n - 1, 1), bool))
+        st.window = stops.Window(0.0, Watch(limits, self.standstill_m_s))
+        if v0_m_s == 0.0:  # at rest from the start: a standstill without a stop
+            st.phase = stops.PHASE_SETTLING
+            st.window.standstill = stops.Standstill(0.0)
+            st.kinematics.step_control[kernel.REST_SINCE] = 0.0
+        return st
 
     @property
     def state(self) -> SimulatorState:
@@ -391,26 +411,91 @@ class Simulator:
         return self._state.time_s
 
     @property
+    def _stop(self) -> stops.OpenStop | None:
+        """The latest stop (None: none yet)."""
+        st = self._state
+        return st.stops[-1] if st.stops else None
+
+    @property
     def command_time_s(self) -> float | None:
-        """Time of the brake command the stopping distance counts from [s] (None: none)."""
-        return self._state.command_time_s
+        """Time of the brake command the latest stop's distance counts from [s] (None:
+        none)."""
+        stop = self._stop
+        return None if stop is None else stop.command_time_s
 
     @property
     def command_speed_kmh(self) -> float | None:
-        """Head speed at the brake command the stopping distance counts from [km/h] (None:
-        none)."""
-        st = self._state
-        return None if st.command_time_s is None else st.command_speed_m_s * KMH_PER_MS
+        """Head speed at the brake command of the latest stop [km/h] (None: none)."""
+        stop = self._stop
+        return None if stop is None else stop.command_speed_m_s * KMH_PER_MS
 
     @property
     def stop_time_s(self) -> float | None:
-        """When the train stopped after a brake command [s] (None: not yet)."""
-        return self._state.stop_time_s
+        """When the train first stood still in the latest stop [s] (None: not yet)."""
+        stop = self._stop
+        return None if stop is None else stop.stop_time_s
 
     @property
     def stopping_distance_m(self) -> float | None:
-        """Head's travel from the brake command to the stop [m] (None: not stopped yet)."""
-        return self._state.stopping_distance_m
+        """Head's travel from the latest stop's brake command to its standstill [m] (None:
+        not stopped yet)."""
+        stop = self._stop
+        return None if stop is None else stop.stopping_distance_m
+
+    @property
+    def stop_peaks(self) -> CouplerPeaks | None:
+        """The largest draft and buff force of the latest stop from its command to its first
+        standstill (while braking: so far), as the paper's Tables 1-2 count them (None: no
+        stop)."""
+        stop = self._stop
+        if stop is None:
+            return None
+        if stop.peaks is not None:
+            return stop.peaks
+        return self._window_peaks([self._state.window])
+
+    @property
+    def settled_time_s(self) -> float | None:
+        """Since when the train has been settled at rest, every vehicle within the standstill
+        speed for at least :data:`~ltd_brake_ros.physics.kernel.SETTLE_S` [s] (None: not
+        settled; it moves, or it stopped and still settles)."""
+        st = self._state
+        rest = st.window.standstill
+        if rest is None or st.phase not in (stops.PHASE_AT_REST, stops.PHASE_RUNAWAY):
+            return None
+        return rest.settled_s
+
+    @property
+    def phase(self) -> str:
+        """Where the run is: ``moving``, ``braking`` (a stop's command given), ``settling``
+        (stood still, not yet settled), ``at rest`` (settled) or ``runaway`` (moved from
+        rest without traction)."""
+        return stops.phase_name(self._state.phase)
+
+    @property
+    def stops(self) -> tuple:
+        """Every stop of the run so far, the latest open, as
+        :class:`~ltd_brake_ros.stops.StopRecord` (each with its peaks and verdicts).
+
+        Returns
+        -------
+        tuple of StopRecord
+        """
+        st = self._state
+        by_stop = {id(w.stop): w for w in [*st.closed, st.window] if w.stop is not None}
+        out = []
+        for stop in st.stops:
+            windows = [w for w in [*st.closed, st.window] if w.stop is stop]
+            last = by_stop[id(stop)]
+            rest = last.standstill
+            out.append(stops.StopRecord(
+                stop.number, stop.command, stop.command_time_s,
+                stop.command_speed_m_s * KMH_PER_MS, stop.stop_time_s,
+                stop.stopping_distance_m, None if rest is None else rest.settled_s,
+                stop.end_time_s, stop.end,
+                stop.peaks if stop.peaks is not None else self._window_peaks(windows),
+                merge_verdicts([self._window_verdicts(w) for w in windows])))
+        return tuple(out)
 
     @property
     def distance_travelled_m(self) -> float:
@@ -445,31 +530,56 @@ class Simulator:
             return False  # the head still moves (the usual case, without a pass over the train)
         return bool((np.abs(v) <= self.standstill_m_s).all())
 
+    def _run_peaks(self) -> tuple:
+        """The run's per-coupler records, the worst of every window: (draft, its time, buff,
+        its time, beyond the range, its time, first out of range), arrays of n - 1."""
+        st, nc = self._state, self.n - 1
+        k = st.kinematics
+        now = (k.peak_draft_N[:nc], k.peak_draft_time_s[:nc], k.peak_buff_N[:nc],
+               k.peak_buff_time_s[:nc], k.beyond_range_m[:nc], k.beyond_range_time_s[:nc],
+               k.out_of_range_time_s[:nc])
+        if not st.closed:
+            return tuple(a.copy() for a in now)
+        return stops.merged_peaks([self._window_records(w) for w in st.closed] + [now])
+
+    def _window_records(self, w: stops.Window) -> tuple:
+        """:meth:`_run_peaks`' records of one window."""
+        nc = self.n - 1
+        e = self._state.kinematics if w.extremes is None else w.extremes
+        return (e.peak_draft_N[:nc], e.peak_draft_time_s[:nc], e.peak_buff_N[:nc],
+                e.peak_buff_time_s[:nc], e.beyond_range_m[:nc], e.beyond_range_time_s[:nc],
+                e.out_of_range_time_s[:nc])
+
+    def _window_peaks(self, windows: list) -> CouplerPeaks:
+        """The largest draft and buff force of some windows."""
+        d, td, b, tb, *_ = stops.merged_peaks([self._window_records(w) for w in windows])
+        return CouplerPeaks.from_arrays(d, td, b, tb)
+
     @property
     def peak_draft_N(self) -> np.ndarray:
         """Largest draft (tension) force per coupler so far [N] (0 if never in draft)."""
-        return self._state.kinematics.peak_draft_N[: self.n - 1].copy()
+        return self._run_peaks()[0]
 
     @property
     def peak_buff_N(self) -> np.ndarray:
         """Largest buff (compression) force per coupler so far, negative [N]."""
-        return self._state.kinematics.peak_buff_N[: self.n - 1].copy()
+        return self._run_peaks()[2]
 
     @property
     def peak_draft_time_s(self) -> np.ndarray:
         """Time of each coupler's peak draft force [s]."""
-        return self._state.kinematics.peak_draft_time_s[: self.n - 1].copy()
+        return self._run_peaks()[1]
 
     @property
     def peak_buff_time_s(self) -> np.ndarray:
         """Time of each coupler's peak buff force [s]."""
-        return self._state.kinematics.peak_buff_time_s[: self.n - 1].copy()
+        return self._run_peaks()[3]
 
     @property
     def lut_excursion_m(self) -> np.ndarray:
         """Largest deflection beyond the coupler model's valid range per coupler [m] (0 if
         never)."""
-        return self._state.kinematics.beyond_range_m[: self.n - 1].copy()
+        return self._run_peaks()[4]
 
     def coupler_peaks(self) -> CouplerPeaks:
         """Largest draft and buff force since the last reset, where and when.
@@ -478,8 +588,8 @@ class Simulator:
         -------
         CouplerPeaks
         """
-        return CouplerPeaks.from_arrays(self.peak_draft_N, self.peak_draft_time_s,
-                                        self.peak_buff_N, self.peak_buff_time_s)
+        d, td, b, tb, *_ = self._run_peaks()
+        return CouplerPeaks.from_arrays(d, td, b, tb)
 
     def coupler_excursions(self, worst: int = 3) -> CouplerExcursions:
         """Couplers that went beyond the coupler model's valid range since the last reset.
@@ -493,12 +603,13 @@ class Simulator:
         -------
         CouplerExcursions
         """
-        k, nc = self._state.kinematics, self.n - 1
-        return CouplerExcursions.from_arrays(k.beyond_range_m[:nc], k.beyond_range_time_s[:nc],
-                                             k.out_of_range_time_s[:nc], worst)
+        *_, beyond, t_beyond, t_out = self._run_peaks()
+        return CouplerExcursions.from_arrays(beyond, t_beyond, t_out, worst)
 
     def verdicts(self, limits: TrainLimits | None = None) -> Verdicts:
-        """Strength and adhesion verdicts since the last reset (:mod:`~ltd_brake_ros.verdicts`).
+        """Strength, adhesion and holding verdicts since the last reset, every stop's and the
+        rest of the run's together (:mod:`~ltd_brake_ros.verdicts`; each stop's own:
+        :attr:`stops`).
 
         Parameters
         ----------
@@ -509,9 +620,21 @@ class Simulator:
         -------
         Verdicts
         """
-        peaks = self._temperature_peaks()
-        return self._state.watch.verdicts(self._state.kinematics, limits,
-                                          wheel_temperature=(peaks[2], peaks[3]))
+        st = self._state
+        return merge_verdicts([self._window_verdicts(w, limits)
+                               for w in [*st.closed, st.window]])
+
+    def _window_verdicts(self, w: stops.Window, limits: TrainLimits | None = None) -> Verdicts:
+        """The verdicts of one window (a closed window's, by the watched limits, kept)."""
+        if w.extremes is not None and limits is None and w.verdicts is not None:
+            return w.verdicts
+        e = self._state.kinematics if w.extremes is None else w.extremes
+        peaks = self._temperature_peaks(e if w.extremes is not None else None)
+        table = w.watch.verdicts(e, limits, wheel_temperature=(peaks[2], peaks[3]),
+                                 holding=w.holding(), runaway=w.runaway())
+        if w.extremes is not None and limits is None:
+            w.verdicts = table
+        return table
 
     def adhesion_records(self) -> VehicleDemand:
         """Each vehicle's adhesion records since the last reset: mean utilised adhesion over
@@ -522,7 +645,7 @@ class Simulator:
         -------
         VehicleDemand
         """
-        return self._state.watch.demand_of(self._state.kinematics)
+        return self._state.window.watch.demand_of(self._state.kinematics)
 
     def wheel_slides(self) -> list[dict]:
         """Vehicles whose wheels slid since the last reset (with an adhesion condition).
@@ -557,9 +680,12 @@ class Simulator:
         k = self._state.kinematics
         return k.brake_energy_J + k.heat_work_J
 
-    def _temperature_peaks(self) -> tuple:
-        """Per-vehicle peaks of block and wheel temperature [K] and their times [s]: the
-        updates' and now."""
+    def _temperature_peaks(self, closed: stops.Extremes | None = None) -> tuple:
+        """Per-vehicle peaks of block and wheel temperature [K] and their times [s] of the
+        current window (the updates' and now) or of a ``closed`` one's records."""
+        if closed is not None:
+            return (closed.peak_block_temperature_K, closed.peak_block_temperature_time_s,
+                    closed.peak_wheel_temperature_K, closed.peak_wheel_temperature_time_s)
         k, t = self._state.kinematics, self._state.time_s
         out = []
         for now, peak, when in ((k.block_temperature_K, k.peak_block_temperature_K,
@@ -578,8 +704,15 @@ class Simulator:
         Peaks
             :class:`~ltd_brake_ros.physics.brakes.thermal.Peaks`.
         """
-        return thermal.Peaks.from_arrays(*self._temperature_peaks(),
-                                         self.model.thermal.ambient_K)
+        st = self._state
+        parts = [self._temperature_peaks(w.extremes) for w in st.closed]
+        peaks = list(self._temperature_peaks())
+        for part in parts:  # the hottest of every window
+            for k in (0, 2):
+                hotter = part[k] > peaks[k]
+                peaks[k] = np.where(hotter, part[k], peaks[k])
+                peaks[k + 1] = np.where(hotter, part[k + 1], peaks[k + 1])
+        return thermal.Peaks.from_arrays(*peaks, self.model.thermal.ambient_K)
 
     def braked_weight_percent(self) -> float:
         """Train braked-weight percentage lambda_train, Eq. 11 [%]."""
@@ -644,12 +777,30 @@ class Simulator:
 
     def _apply_commands(self, commands: Commands, events: list) -> None:
         st = self._state
-        if (commands.emergency or commands.brake_demand > 0.0) and st.command_time_s is None:
-            # the stopping distance counts from the brake command that leads to the stop
-            st.command_time_s = st.time_s
-            st.command_head_m = float(st.kinematics.x_m[0])
-            st.command_speed_m_s = float(st.kinematics.v_m_s[0])
-            st.watch.start(st.command_speed_m_s)
+        k = st.kinematics
+        if commands.traction > 0.0 and st.phase in (stops.PHASE_SETTLING, stops.PHASE_AT_REST,
+                                                    stops.PHASE_RUNAWAY):
+            # traction from rest: a drive-off ends the stop and its holding
+            stop = st.window.stop
+            if stop is not None:
+                stop.end_time_s, stop.end = st.time_s, "drive-off"
+            events.append(Event(st.time_s, "drive_off"))
+            self._open_window(None)
+            st.phase = stops.PHASE_MOVING
+        braking = commands.emergency or commands.brake_demand > 0.0
+        if braking and st.phase in (stops.PHASE_MOVING, stops.PHASE_RUNAWAY):
+            # a brake command while the train moves starts a stop: its distance counts from
+            # here
+            previous = st.window.stop
+            if previous is not None and previous.end == "open":
+                previous.end_time_s, previous.end = st.time_s, "new stop"
+            stop = stops.OpenStop(len(st.stops) + 1,
+                                  "emergency" if commands.emergency else "service", st.time_s,
+                                  float(k.v_m_s[0]), float(k.x_m[0]))
+            st.stops.append(stop)
+            self._open_window(stop)
+            st.window.watch.start(stop.command_speed_m_s)
+            st.phase = stops.PHASE_BRAKING
         if commands.emergency and not st.emergency:
             st.emergency = True
             events.append(Event(st.time_s, "brake_applied"))
@@ -662,12 +813,28 @@ class Simulator:
             level = (0.0, OVERCHARGE)
         else:
             level = (float(commands.brake_demand), SERVICE)
-        if level[0] == 0.0 and st.stop_time_s is None:
-            st.command_time_s = None  # released before standstill: a new stop counts anew
+        if level[0] == 0.0 and st.phase == stops.PHASE_BRAKING:
+            # released before standstill: no stop (a new command counts anew)
+            st.stops.pop()
+            st.window.stop = None
+            st.phase = stops.PHASE_MOVING
         if level != st.brake_command:
             st.brake_command = level
             self._add_event(*level)
         st.traction_demand = float(commands.traction)
+
+    def _open_window(self, stop: stops.OpenStop | None) -> None:
+        """Close the window judged now and start another at this time (see
+        :mod:`~ltd_brake_ros.stops`); an empty one (no time, no standstill) is dropped."""
+        st = self._state
+        w, k, t = st.window, st.kinematics, st.time_s
+        if t > w.start_s or w.standstill is not None:
+            w.extremes, w.end_s = stops.Extremes.of(k), t
+            st.closed.append(w)
+        stops.reset_extremes(k, t)
+        st.reported_out_of_range[:] = False
+        st.reported_out_of_range_count = 0
+        st.window = stops.Window(t, Watch(self.limits, self.standstill_m_s), stop)
 
     def advance(self, duration_s: float, commands: Commands | None = None) -> Snapshot:
         """Integrate one chunk of simulated time.
@@ -719,11 +886,11 @@ class Simulator:
             ws = self._new_workspace()
         ws = ws[2]
         while remaining:
-            watch = st.stop_time_s is None and st.command_time_s is not None
             try:
                 code, t, hp, done = self._run_loop(
                     remaining, h, st.time_s, st.last_step_s, self.model, inputs, st.kinematics,
-                    st.brakes, st.events, st.stats[0], self._options, watch, ws)
+                    st.brakes, st.events, st.stats[0], self._options,
+                    stops.WATCH_OF_PHASE[st.phase], ws)
             except ArithmeticError as exc:
                 # e.g. a division by zero in the compiled kernel; the state is part-way
                 # through a step, so only a reset recovers
@@ -746,19 +913,58 @@ class Simulator:
                 raise SimulationError(
                     f"a force is not finite (inf or NaN) in the step starting at t = {t:.4f} s: "
                     "check the external forces and the model parameters")
-            if code == kernel.STOPPED:
-                st.stop_time_s = st.time_s
-                st.stopping_distance_m = float(st.kinematics.x_m[0]) - st.command_head_m
-                events.append(Event(st.time_s, "stopped", {
-                    "stopping_distance_m": st.stopping_distance_m,
-                    "stop_time_s": st.time_s - st.command_time_s}))
+            if code != kernel.OK:
+                self._phase_change(code, events)
         self._report_out_of_range(events)
         k = st.kinematics
-        events += [Event(t, "limit_exceeded", d) for t, d in st.watch.check(
+        w = st.window
+        events += [Event(t, "limit_exceeded", d) for t, d in w.watch.check(
             t0, v0, st.time_s, float(k.v_m_s[0]), k, k.v_m_s, k.brake_force_N)]
-        if st.stop_time_s is not None and self.n > 1:
+        if st.phase == stops.PHASE_AT_REST:
             events += [Event(t, "limit_exceeded", d) for t, d in self._holding()]
+        elif st.phase == stops.PHASE_RUNAWAY:
+            events += self._runaway(st.time_s)
         return self.snapshot(tuple(events))
+
+    def _phase_change(self, code: int, events: list) -> None:
+        """What the kernel found at the end of a step: the stop, the train settled, or a
+        vehicle moving from rest (:mod:`~ltd_brake_ros.stops`)."""
+        st = self._state
+        k, t = st.kinematics, st.time_s
+        if code == kernel.STOPPED:
+            stop = st.window.stop
+            stop.stop_time_s = t
+            stop.stopping_distance_m = float(k.x_m[0]) - stop.command_head_m
+            nc = self.n - 1
+            stop.peaks = CouplerPeaks.from_arrays(k.peak_draft_N[:nc], k.peak_draft_time_s[:nc],
+                                                  k.peak_buff_N[:nc], k.peak_buff_time_s[:nc])
+            events.append(Event(t, "stopped", {
+                "stop": stop.number, "stopping_distance_m": stop.stopping_distance_m,
+                "stop_time_s": t - stop.command_time_s}))
+            st.window.standstill = stops.Standstill(t)
+            stops.start_rest(k.step_control, t, k.v_m_s, self.standstill_m_s)
+            st.phase = stops.PHASE_SETTLING
+        elif code == kernel.SETTLED:
+            rest = st.window.standstill
+            rest.settled_s = float(k.step_control[kernel.REST_SINCE])
+            events.append(Event(t, "settled", {"settled_time_s": rest.settled_s}))
+            st.phase = stops.PHASE_AT_REST
+        elif code == kernel.MOVED:  # from rest, without traction (traction ends the phase)
+            st.phase = stops.PHASE_RUNAWAY
+            events += self._runaway(t)
+
+    def _runaway(self, t: float) -> list:
+        """Vehicles moving after the train had settled, without traction: the runaway
+        records, and an event for each vehicle that moves for the first time."""
+        st = self._state
+        k = st.kinematics
+        first = st.window.standstill.moved(t, k.v_m_s, self.standstill_m_s)
+        out = []
+        for i in np.flatnonzero(first):
+            speed = abs(float(k.v_m_s[i])) * KMH_PER_MS
+            out.append(Event(t, "limit_exceeded", Watch.event_detail(
+                "runaway", int(i), speed, self.standstill_m_s * KMH_PER_MS, speed)))
+        return out
 
     def warm_up(self) -> None:
         """Load (or compile, on the first run after installing) every compiled function a run
@@ -768,31 +974,42 @@ class Simulator:
         saved = self._state.copy()
         try:
             self.advance(self.step_s)
-            self._holding()
+            self._rest_forces()
         finally:
             self._state = saved
             self._workspace = None
 
     def _holding(self) -> list[tuple]:
-        """The train at rest: each vehicle's force to hold against what it holds
-        (:meth:`Watch.at_rest <ltd_brake_ros.verdicts.Watch.at_rest>`)."""
+        """The train settled at rest: each vehicle's force to hold against what it holds
+        (:meth:`_rest_forces`); vehicles first needing more, as ``limit_exceeded`` details."""
+        st = self._state
+        need, capacity, tolerance = (np.array([a.sum()]) for a in self._rest_forces())
+        if st.window.standstill.judge_rest(st.time_s, need, capacity, tolerance)[0]:
+            return [(st.time_s, {"criterion": "standstill_holding", "train": 0,
+                                 "force_kN": abs(float(need[0])) / 1e3,
+                                 "limit_kN": float(capacity[0]) / 1e3, "speed_kmh": 0.0})]
+        return []
+
+    def _rest_forces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each vehicle's share of the force the train must hold at rest (grade, external and
+        traction forces: the couplers' forces are inner forces of the train, which the
+        vehicles share out among themselves by sliding a little), what it holds (the static
+        friction of its brake, the kinetic law at rest, at most the rail's adhesion at rest,
+        plus its running resistance at rest) and the integrator's force tolerance [N]."""
         st, m = self._state, self.model
         k, n = st.kinematics, self.n
         fgrade, rcurve = np.zeros(n), np.zeros(n)
         kernel.track_forces(k.x_m, m.train, m.track, fgrade, rcurve)
-        fc = k.coupler_force_N[: n - 1]
         need = fgrade + self.fext_N + k.traction_force_N
-        need[:-1] -= fc  # the coupler behind pulls a vehicle back in draft
-        need[1:] += fc
         fr = m.friction
         scale = np.zeros(n)
         friction.force_scales(fr.kind, fr.blocks, fr.arrangement, fr.mu_disc, st.brakes.force_N,
                               scale)
-        # the kinetic brake force at rest (Karwatzki's speed factor 0.6 at v = 0 for blocks)
-        kinetic = np.where(fr.kind == friction.BRAKE_BLOCKS, 0.6 * scale, scale)
-        grip = np.empty(n)
-        friction.standstill_capacities(st.brakes.force_N, fr.force_max_N, m.train.mass_kg, grip)
-        return st.watch.at_rest(st.time_s, need, np.maximum(np.maximum(kinetic, grip), 1.0))
+        static = np.where(fr.kind == friction.BRAKE_BLOCKS,
+                          friction.karwatzki_speed_factor(0.0)[0] * scale, scale)
+        rest = (self._rest_resistance + rcurve) * m.train.resist
+        capacity = np.minimum(static, REST_ADHESION * fr.weight_N) + rest
+        return need, capacity, self.newton_rtol * fr.weight_N
 
     def _bind_kernel(self) -> None:
         """Compile (or load from the cache) the kernel's step loop for this train's bundles
@@ -808,7 +1025,7 @@ class Simulator:
         st = self._state
         return (1, self.step_s, st.time_s, st.last_step_s, self.model,
                 kernel.Inputs(st.traction_demand, self.fext_N), st.kinematics, st.brakes,
-                st.events, st.stats[0], self._options, False)
+                st.events, st.stats[0], self._options, kernel.WATCH_NONE)
 
     def _new_workspace(self) -> tuple:
         """The kernel's work arrays for the current state and model, kept for the next chunks

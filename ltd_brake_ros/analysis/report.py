@@ -642,6 +642,8 @@ def analyse(path, namespace: str | None = None) -> RunReport:
             peak_buff_N=rep.coupler_peak_buff_N, peak_buff_time_s=rep.coupler_peak_buff_time_s,
             buff_speed_kmh=kmh(rep.coupler_peak_buff_time_s),
             demand=watch.sampled.result() if watch.limits.adhesion_limit.size else None,
+            rail_demand=watch.sampled.rail_demand() if watch.limits.adhesion_limit.size
+            else None,
             travel_beyond_mm=watch.beyond_mm if watch._x0 is not None else None,
             travel_time_s=watch.beyond_t, travel_speed_kmh=watch.beyond_kmh,
             holding_reason="not assessed from a recording: it holds no brake state at rest",
@@ -776,8 +778,9 @@ class _Watch:
         self.limits = limits_from_metadata(metadata.get("limits"), n_vehicles) or \
             default_coupler_limits(n_vehicles)
         n, nc = self.limits.adhesion_limit.size, self.limits.draft_strength_N.size
-        self.first_time_s = {name: np.full(nc if CRITERIA[name].element == "coupler" else n,
-                                           -1.0) for name in CRITERIA}
+        sizes = {"coupler": nc, "vehicle": n, "train": 1}
+        self.first_time_s = {name: np.full(sizes[CRITERIA[name].element], -1.0)
+                             for name in CRITERIA}
         self.sampled = SampledDemand(self.limits)
         self.speed = None
         self.position = None
@@ -803,6 +806,7 @@ class _Watch:
         self._first("draft_strength", t, force > lim.draft_strength_N)
         self._first("buff_strength", t, -force > lim.buff_strength_N)
         self._first("endurable_lcf", t, -force > lim.endurable_lcf_N)
+        self._first("buffer_limit_state", t, -force > lim.of("buffer_limit_state"))
 
     def positions(self, t: float, x: np.ndarray) -> None:
         self.position = x
@@ -825,7 +829,7 @@ class _Watch:
         if self.speed is None or self.position is None:
             return
         self.sampled.add(t, self.speed, self.position, force)
-        self.first_time_s["adhesion_at_speed"] = self.sampled.first_at_speed_s
+        self.first_time_s["adhesion_demand"] = self.sampled.first_rail_s
 
 
 def _head_position(tp, xp, ts, vs, t: float) -> float:

@@ -143,6 +143,9 @@ class Vehicle:
         Traction and dynamic brake of a powered vehicle (a locomotive).
     limits : VehicleLimits
         Strength and adhesion limits of the vehicle for the verdicts on a run.
+    max_speed_kmh : float or None
+        Its declared maximum speed [km/h]: the speed of the adhesion design check's stop
+        (None: not declared, :data:`~ltd_brake_ros.verdicts.DEFAULT_MAX_SPEED_KMH` assumed).
     """
 
     name: str
@@ -154,6 +157,7 @@ class Vehicle:
     brake_position: str = "P"
     traction: Traction | None = None
     limits: VehicleLimits = VehicleLimits()
+    max_speed_kmh: float | None = None
 
     @property
     def braked_weight_t(self) -> float:
@@ -221,7 +225,8 @@ class Consist:
 
 
 _VEHICLE_FIELDS = {"type", "count", "description", "mass_t", "length_m", "axles",
-                   "inertia_factor", "brake", "brake_position", "traction", "limits"}
+                   "inertia_factor", "brake", "brake_position", "traction", "limits",
+                   "max_speed_kmh"}
 _BRAKE_TYPES = ("blocks", "disc", "none")
 
 
@@ -414,8 +419,9 @@ def _consist(data: Any, source: str, shipped: dict[str, dict]) -> Consist:
         limits = _parse_limits(g.data["limits"], source, g.sub("limits"), train_limits) \
             if g.has("limits") else train_limits
         name = str(f.data.get("type", f"vehicle {i}"))
+        vmax = g.number("max_speed_kmh", lo=10.0, hi=400.0) if g.has("max_speed_kmh") else None
         vehicles.extend([Vehicle(name, mass_t * 1e3, length, axles, rho, brake, position,
-                                 traction, limits)] * count)
+                                 traction, limits, vmax)] * count)
     venting = top.integer("venting_vehicle", lo=0, hi=len(vehicles) - 1) \
         if top.has("venting_vehicle") else None
     return Consist(train_name, tuple(vehicles), str(source), venting)

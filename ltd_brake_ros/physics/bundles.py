@@ -14,7 +14,15 @@ from .brakes import friction, thermal
 
 
 #: Kernel return codes.
-OK, NEWTON_FAILED, STOPPED, NOT_FINITE = 0, 1, 2, 3
+OK, NEWTON_FAILED, STOPPED, NOT_FINITE, SETTLED, MOVED = 0, 1, 2, 3, 4, 5
+#: What the step loop watches at the end of each nominal step (its ``watch`` argument):
+#: nothing; the stop (every vehicle slower than the standstill speed going forward: returns
+#: ``STOPPED``); the settling after it (every vehicle's speed within the standstill speed for
+#: :data:`SETTLE_S` without a break: ``SETTLED``); the train at rest (a vehicle faster than
+#: the standstill speed either way: ``MOVED``).
+WATCH_NONE, WATCH_STOP, WATCH_SETTLE, WATCH_REST = 0, 1, 2, 3
+#: A train has settled once every vehicle has stayed within the standstill speed this long [s].
+SETTLE_S = 2.0
 
 
 #: Default local error allowed per step in each vehicle's speed [m/s].
@@ -182,11 +190,13 @@ class KinematicState(NamedTuple):
         Work of each vehicle's brake up to the last update [J].
     heat_clock_s : ndarray, shape (2,)
         Time of the last update and of the next grid time [s] (:func:`.brakes.thermal.advance`).
-    step_control : ndarray, shape (3,)
+    step_control : ndarray, shape (4,)
         Entry :data:`NEXT_STEP`: the step the error control proposes next [s] (0: the nominal
         step); entry :data:`ACCEL_VALID`: 1 once ``accel_m_s2`` holds a step's derivative;
         entry :data:`OUT_OF_RANGE`: how many couplers have left their valid range (those with
-        ``out_of_range_time_s`` >= 0), so that a caller needs no pass over the train to know.
+        ``out_of_range_time_s`` >= 0), so that a caller needs no pass over the train to know;
+        entry :data:`REST_SINCE`: since when every vehicle has been within the standstill
+        speed, while the step loop watches a train settle [s] (-1: not at rest).
     """
 
     x_m: np.ndarray
@@ -240,7 +250,7 @@ class KinematicState(NamedTuple):
         return cls(np.zeros(n), v, np.zeros(n), np.full(n, speed_m_s), v == 0.0, np.zeros(n),
                    np.zeros(nc), np.zeros(n), np.zeros(nc), np.zeros(nc), np.zeros(nc),
                    np.zeros(nc), np.zeros(nc), np.full(nc, -1.0), np.full(nc, -1.0),
-                   np.zeros(n), np.zeros(3), np.zeros(n), np.zeros(n),
+                   np.zeros(n), np.array([0.0, 0.0, 0.0, -1.0]), np.zeros(n), np.zeros(n),
                    *(np.zeros(n) for _ in range(6)), np.zeros(n), np.full(n, -1.0),
                    temp, temp.copy(), temp.copy(), temp.copy(), temp.copy(), np.zeros(n),
                    temp.copy(), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(2))
@@ -251,7 +261,7 @@ class KinematicState(NamedTuple):
 
 
 #: Entries of ``KinematicState.step_control``.
-NEXT_STEP, ACCEL_VALID, OUT_OF_RANGE = 0, 1, 2
+NEXT_STEP, ACCEL_VALID, OUT_OF_RANGE, REST_SINCE = 0, 1, 2, 3
 
 
 #: A brake counts as fully applied from this fraction of its full retarding-force scale on
@@ -372,7 +382,6 @@ class _Step(NamedTuple):
     rcurve: np.ndarray
     resist: float
     v_stick: float
-    hold: np.ndarray  # standstill holding capacity of each vehicle at rest, else 0 [N]
 
 
 class _Work(NamedTuple):
@@ -443,7 +452,6 @@ class _Workspace(NamedTuple):
     save_extra: np.ndarray
     save_ftr: np.ndarray
     local: "_Local"
-    hold: np.ndarray
 
 
 class _Scratch(NamedTuple):

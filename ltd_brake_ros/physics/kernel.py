@@ -52,11 +52,13 @@ from .brakes import adhesion, friction, thermal
 from .equations import (HAVE_NUMBA, jit_step, jit_step_inner, lut_segment, plain, plain_now,
                         renamed_copy, resistance_coefficients)
 from .bundles import (ACCEL_VALID, ADHESION_SPLIT_SPEED_M_S, CURVE, DEFAULT_NEWTON_RTOL,
-                      DEFAULT_TOLERANCE_M_S, FULL_APPLICATION, GRADIENT, Inputs, KinematicState,
-                      MEAN_ADHESION_MIN_SPEED_M_S, NEWTON_FAILED, NEXT_STEP, NOT_FINITE, OK,
-                      OUT_OF_RANGE, Options, SECTION_START, STATS_DTYPE, STOPPED, Stats,
-                      TrackArrays, TractionArrays, TrainArrays, TrainModel, _Local, _Scratch,
-                      _Step, _Work, _Workspace, new_stats, read_stats)
+                      DEFAULT_TOLERANCE_M_S, FULL_APPLICATION, GRADIENT, MOVED, NEWTON_FAILED,
+                      NEXT_STEP, NOT_FINITE, OK, OUT_OF_RANGE, REST_SINCE, SECTION_START,
+                      SETTLE_S, SETTLED, STATS_DTYPE, STOPPED, WATCH_NONE, WATCH_REST,
+                      WATCH_SETTLE, WATCH_STOP, Inputs, KinematicState,
+                      MEAN_ADHESION_MIN_SPEED_M_S, Options, Stats, TrackArrays, TractionArrays,
+                      TrainArrays, TrainModel, _Local, _Scratch, _Step, _Work, _Workspace,
+                      new_stats, read_stats)
 from .step_control import (MIN_STEP_FRACTION, NEWTON_SHRINK, _bdf2, _error_ratio, _next_step,
                            _record_coupler, _step_factor, _substep)
 from .newton import FAST_ITERATIONS, _newton
@@ -72,9 +74,11 @@ refine_all = _refine_all
 #: defines), as its callers use it.
 __all__ = ["ACCEL_VALID", "ADHESION_SPLIT_SPEED_M_S", "CURVE", "DEFAULT_NEWTON_RTOL",
            "DEFAULT_TOLERANCE_M_S", "FULL_APPLICATION", "GRADIENT", "Inputs", "KinematicState",
-           "LOCAL_MIN_VEHICLES", "MEAN_ADHESION_MIN_SPEED_M_S", "NEWTON_FAILED", "NEXT_STEP",
-           "NOT_FINITE", "OK", "OUT_OF_RANGE", "Options", "SECTION_START", "STATS_DTYPE",
-           "STOPPED", "Stats", "TrackArrays", "TractionArrays", "TrainArrays", "TrainModel",
+           "LOCAL_MIN_VEHICLES", "MEAN_ADHESION_MIN_SPEED_M_S", "MOVED", "NEWTON_FAILED",
+           "NEXT_STEP", "NOT_FINITE", "OK", "OUT_OF_RANGE", "Options", "REST_SINCE",
+           "SECTION_START", "SETTLED", "SETTLE_S", "STATS_DTYPE", "STOPPED", "Stats",
+           "TrackArrays", "TractionArrays", "TrainArrays", "TrainModel", "WATCH_NONE",
+           "WATCH_REST", "WATCH_SETTLE", "WATCH_STOP",
            "advance_traction", "bind_run_loop", "local_steps_run", "loop_for", "new_stats",
            "new_workspace", "read_stats", "run_loop", "run_steps", "track_forces"]
 
@@ -148,7 +152,7 @@ def track_forces(x, train, track, fgrade, rcurve):
 
 
 def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats, options,
-              watch_stop):
+              watch):
     """Advance the train ``nsteps`` nominal steps of ``h`` seconds (state updated in place).
 
     With ``options.tolerance_m_s`` > 0 each nominal step is taken whole when the local error
@@ -183,15 +187,20 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
     stats : STATS_DTYPE record
         Counters, incremented.
     options : Options
-    watch_stop : bool
-        Return ``STOPPED`` right after the first nominal step that leaves every vehicle slower
-        than ``options.standstill_m_s``.
+    watch : int
+        What to watch at the end of each nominal step (:data:`WATCH_NONE`,
+        :data:`WATCH_STOP`, :data:`WATCH_SETTLE`, :data:`WATCH_REST`): return ``STOPPED``
+        right after the first nominal step that leaves every vehicle slower than
+        ``options.standstill_m_s`` going forward; ``SETTLED`` once every vehicle's speed has
+        stayed within it for :data:`SETTLE_S` (since ``state.step_control[REST_SINCE]``, which
+        the caller sets to -1 when it starts watching); ``MOVED`` after the first nominal step
+        that leaves a vehicle faster than it either way.
 
     Returns
     -------
     code : int
         ``OK``, ``NEWTON_FAILED``, ``NOT_FINITE`` (a force or its residual became infinite or
-        NaN) or ``STOPPED``.
+        NaN), ``STOPPED``, ``SETTLED`` or ``MOVED``.
     t : float
         Time reached [s]: the end of the last nominal step completed, or the start of the
         step that failed.
@@ -202,7 +211,7 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
     """
     ws = new_workspace(model, state, brake_state, options)
     args = (nsteps, h, t, hp, model, inputs, state, brake_state, events, stats, options,
-            watch_stop, ws)
+            watch, ws)
     return loop_for(model, state, options)(*args)
 
 
@@ -249,7 +258,32 @@ def new_workspace(model, state, brake_state, options):
                      np.zeros(nc, np.int64)),
                np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc),
                np.empty(nc), np.empty(nc), np.zeros(1), np.empty(n), np.zeros((n, 2), np.int64),
-               np.empty(n)), np.zeros(n))
+               np.empty(n)))
+
+
+@jit_step_inner
+def _watch(watch, v, v_stop, t, control):
+    """The end of a nominal step at ``t`` [s] as :func:`run_steps`'s ``watch`` sees it: ``OK``
+    or the code to return (``control[REST_SINCE]`` updated while watching a train settle)."""
+    if watch == WATCH_STOP:
+        for i in range(v.shape[0]):
+            if v[i] > v_stop:  # still moving forward (a vehicle rolling back has stopped)
+                return OK
+        return STOPPED
+    still = True
+    for i in range(v.shape[0]):
+        if abs(v[i]) > v_stop:
+            still = False
+            break
+    if watch == WATCH_REST:
+        return OK if still else MOVED
+    if not still:
+        control[REST_SINCE] = -1.0
+    elif control[REST_SINCE] < 0.0:
+        control[REST_SINCE] = t
+    elif t - control[REST_SINCE] >= SETTLE_S - 1e-9:
+        return SETTLED
+    return OK
 
 
 @jit_step_inner
@@ -267,7 +301,7 @@ def _copy_undo(fb, lvl, kind, nxt, extra, ftr, fb_to, lvl_to, kind_to, nxt_to, e
 
 @jit_step
 def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats, options,
-             watch_stop, ws):
+             watch, ws):
     """The step loop of :func:`run_steps` (same arguments and results, plus its workspace
     ``ws`` from :func:`new_workspace`, which a caller may keep for its next call).
 
@@ -321,10 +355,8 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
     save_next, save_extra, save_ftr = ws.save_next, ws.save_extra, ws.save_ftr
     lvl, lkind, nxt, extra = (brake_state.level, brake_state.level_kind, brake_state.next_event,
                               brake_state.extra)
-    hold = ws.hold
-    fmax = fr_arrays.force_max_N
     s = _Step(xhat, vhat, bh_step, fx, train.meff_kg, tol, res_a, fa_scale, rcurve,
-              train.resist, v_stick, hold)
+              train.resist, v_stick)
     retried = False  # the step being tried follows a rejection
     local = adaptive and options.local_steps and n >= LOCAL_MIN_VEHICLES
     # on a track of one section every vehicle's gradient and curve forces stay as they are
@@ -356,9 +388,6 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
             bh = beta * hs
             for i in range(n):
                 stuck0[i] = stuck[i]
-                # a vehicle at rest holds up to its standstill capacity (braked: adhesion)
-                hold[i] = friction.standstill_capacity(fb[i], fmax[i], mass[i]) if stuck[i] \
-                    else 0.0
                 xhat[i] = c1 * x[i] - c2 * xp[i]
                 vhat[i] = c1 * v[i] - c2 * vp[i]
                 u[i] = v[i] + w_ratio * (v[i] - vp[i])
@@ -468,16 +497,12 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
             if last:
                 break
         t = t_end
-        if watch_stop:
-            all_stopped = True
-            for i in range(n):
-                if v[i] > v_stop:  # still moving forward (a vehicle rolling back has stopped)
-                    all_stopped = False
-                    break
-            if all_stopped:
+        if watch != WATCH_NONE:
+            found = _watch(watch, v, v_stop, t, control)
+            if found != OK:
                 thermal.current(model.thermal, state, fb, t, state.block_temperature_K,
                                 state.wheel_temperature_K)
-                return STOPPED, t, hp, _step + 1
+                return found, t, hp, _step + 1
     # the temperatures now, for the caller's snapshot
     thermal.current(model.thermal, state, fb, t, state.block_temperature_K,
                     state.wheel_temperature_K)

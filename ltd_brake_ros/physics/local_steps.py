@@ -227,7 +227,7 @@ def _refine(lo, hi, h, tc, hs, hp, first_factor, model, state, ws, s, u, options
                                   fr.mu_disc[a:b + 1], fr.force_max_N[a:b + 1],
                                   fr.full_scale_N[a:b + 1], fr.weight_N[a:b + 1], fr.adhesion)
     step = _Step(wxhat, wvhat, loc.bh, wfx, wmeff, wtol, s.res_a[a:b + 1], s.fa_scale[a:b + 1],
-                 s.rcurve[a:b + 1], s.resist, s.v_stick, s.hold[a:b + 1])
+                 s.rcurve[a:b + 1], s.resist, s.v_stick)
     wfc = work.fc
     for k in range(m):
         g = a + k

@@ -97,7 +97,6 @@ def _residual(u, s, cp, fr_arrays, w):
     # bundle fields bound once: the loops below then touch plain arrays only
     xhat, vhat, bh, fx, meff, tol = s.xhat, s.vhat, s.bh[0], s.fx, s.meff, s.tol
     res_a, fa_scale, rcurve, resist, v_stick = s.res_a, s.fa_scale, s.rcurve, s.resist, s.v_stick
-    hold = s.hold
     kind, adh, weight = fr_arrays.kind, fr_arrays.adhesion, fr_arrays.weight_N
     model, table, coef = cp.model, cp.table, cp.coef
     g, diag, cj, fc, fair = w.g, w.diag, w.cj, w.fc, w.fair
@@ -121,19 +120,7 @@ def _residual(u, s, cp, fr_arrays, w):
         spd = abs(u[i])
         fa, fr, dr = _retarding(i, spd, res_a, rcurve, resist, kind, fa_scale, adh, weight)
         total = fa + fr
-        if hold[i] > total:
-            # at rest at the step's start and held beyond the kinetic force: the force grows
-            # linearly to the holding capacity across the standstill band and stays there
-            # beyond it (monotone: the vehicle breaks away only if the step needs more)
-            if spd > v_stick:
-                g[i] = g0 + (hold[i] if u[i] > 0.0 else -hold[i])
-                diag[i] = meff[i] * inv_bh
-                fair[i] = fa
-            else:
-                g[i] = g0 + hold[i] * u[i] / v_stick
-                diag[i] = meff[i] * inv_bh + hold[i] / v_stick
-                fair[i] = fa * spd / v_stick
-        elif spd > v_stick:
+        if spd > v_stick:
             sg = 1.0 if u[i] > 0.0 else -1.0
             g[i] = g0 + sg * total
             diag[i] = meff[i] * inv_bh + dr

@@ -48,6 +48,7 @@ class StopResult:
     initial_speed_kmh: float
     stopping_distance_m: float
     stop_time_s: float
+    settled_time_s: float | None
     peak_draft_kN: float
     peak_draft_coupler: int
     peak_draft_time_s: float
@@ -82,6 +83,17 @@ _STOP_FIELDS = tuple(f.name for f in fields(StopResult))
 #: deceleration, predicted only once that deceleration grows by at most :data:`DECEL_GROWTH`
 #: per call (the brakes have applied).
 MAX_GROUPED, STOP_MARGIN, DECEL_GROWTH = 16, 0.5, 1.5
+#: A run to the stop goes on until the train has settled at rest (its couplers' recoil
+#: over), at most this long after the standstill [s]: a train still moving then has not
+#: settled (its holding verdicts say so).
+SETTLE_MAX_S = 60.0
+
+
+def _done(sim: Simulator) -> bool:
+    """The run to a stop is over: the train has settled, or it stood still
+    :data:`SETTLE_MAX_S` ago without settling."""
+    return sim.settled_time_s is not None or (
+        sim.stop_time_s is not None and sim.time_s - sim.stop_time_s >= SETTLE_MAX_S - 1e-9)
 
 
 def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | None = None,
@@ -90,7 +102,7 @@ def emergency_stop(consist: Consist, speed_kmh: float, params: BrakeParams | Non
                    chunk_s: float = 1.0, max_time_s: float = 600.0,
                    on_chunk: Callable[[Snapshot], None] | None = None,
                    progress: Callable[[Progress], None] | None = None) -> StopResult:
-    """Apply the emergency brake at t = 0 and integrate until the train stands still.
+    """Apply the emergency brake at t = 0 and integrate until the train has settled at rest.
 
     The run of :func:`emergency_run` (its wall time counts the simulator's construction);
     without ``on_chunk`` and ``progress`` its chunks are grouped while the stop is far (the
@@ -147,7 +159,9 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
     """An emergency stop: the brake applied at t = 0, chunks of ``chunk_s`` to the stop.
 
     The one loop of an emergency stop (:func:`emergency_stop`, ``ltd-brake simulate``,
-    campaigns). The run ends at the end of the chunk in which the train stopped.
+    campaigns). The run ends at the end of the chunk in which the train settled at rest (every
+    vehicle within 1 mm/s for 2 s, the couplers' recoil over), at most :data:`SETTLE_MAX_S`
+    after it first stood still.
 
     With ``group``, several chunks go into one
     :meth:`~ltd_brake_ros.simulator.Simulator.advance` call while the stop is still far (each
@@ -190,7 +204,7 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
     Returns
     -------
     Simulator
-        At the end of the chunk in which the train stopped.
+        At the end of the chunk in which the train settled.
 
     Raises
     ------
@@ -211,7 +225,7 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
         snap = sim.advance(span, commands)
         commands = None  # held
         _report(snap, None, start, on_chunk, progress)
-        if sim.stop_time_s is not None:
+        if _done(sim):
             return sim
         if sim.time_s >= max_time_s:
             raise SimulationError(f"the train had not stopped after {max_time_s:g} s")
@@ -288,8 +302,8 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
             k += 1
         snap = sim.advance(min(chunk_s, end - sim.time_s), Commands(**state))
         _report(snap, script.duration_s, start, on_chunk, progress)
-        if script.duration_s is None and sim.stop_time_s is not None:
-            break
+        if script.duration_s is None and k == len(script.steps) and _done(sim):
+            break  # every command given and the train settled after its last stop
     return sim
 
 
@@ -315,16 +329,16 @@ def summarize(sim: Simulator, wall_s: float) -> StopResult:
     -------
     StopResult
     """
-    peaks = sim.coupler_peaks()
+    peaks = sim.stop_peaks
     beyond = sim.coupler_excursions()
     stats = sim.stats
-    stop_t = sim.stop_time_s - (sim.command_time_s or 0.0)
+    stop_t = sim.stop_time_s - sim.command_time_s
     return StopResult(
         consist=sim.consist.name, vehicles=sim.n, train_length_m=sim.consist.length_m,
         train_mass_t=sim.consist.mass_kg / 1e3,
         braked_weight_percent=sim.braked_weight_percent(),
         initial_speed_kmh=sim.speed_kmh, stopping_distance_m=float(sim.stopping_distance_m),
-        stop_time_s=float(stop_t),
+        stop_time_s=float(stop_t), settled_time_s=sim.settled_time_s,
         peak_draft_kN=peaks.draft_N / 1e3, peak_draft_coupler=peaks.draft_coupler,
         peak_draft_time_s=peaks.draft_time_s,
         peak_buff_kN=peaks.buff_N / 1e3, peak_buff_coupler=peaks.buff_coupler,

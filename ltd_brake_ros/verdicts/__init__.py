@@ -54,17 +54,19 @@ from __future__ import annotations
 
 from .rules import (ADHESION_AT_SPEED_LIMIT, ADHESION_LIMIT, ADHESION_LIMIT_WSP,
                     ADHESION_SPEED_KMH, BUFF_STRENGTH_N, CRITERIA, DRAFT_STRENGTH_N,
-                    MEAN_ADHESION_MIN_INITIAL_KMH, WHEEL_TEMPERATURE_LIMIT_K, Rule, TrainLimits,
+                    MEAN_ADHESION_MIN_INITIAL_KMH, REST_ADHESION, WHEEL_TEMPERATURE_LIMIT_K,
+                    Rule, TrainLimits,
                     default_coupler_limits, limits_from_metadata, limits_metadata, train_limits,
                     wet_rail_adhesion)
 from .table import (FLAG_NAMES, Criterion, Exceedance, VehicleDemand, Verdicts,
-                    diagnostic_values, flags, judge)
+                    diagnostic_values, flags, judge, merge)
 from .watch import SampledDemand, Watch
 
 __all__ = ["ADHESION_AT_SPEED_LIMIT", "ADHESION_LIMIT", "ADHESION_LIMIT_WSP",
            "ADHESION_SPEED_KMH", "BUFF_STRENGTH_N", "CRITERIA", "DRAFT_STRENGTH_N",
-           "FLAG_NAMES", "MEAN_ADHESION_MIN_INITIAL_KMH", "Criterion", "Exceedance", "Rule",
+           "FLAG_NAMES", "MEAN_ADHESION_MIN_INITIAL_KMH", "REST_ADHESION", "Criterion",
+           "Exceedance", "Rule",
            "SampledDemand", "TrainLimits", "VehicleDemand", "Verdicts",
            "WHEEL_TEMPERATURE_LIMIT_K", "Watch", "default_coupler_limits", "diagnostic_values",
-           "flags", "judge", "limits_from_metadata", "limits_metadata", "train_limits",
+           "flags", "judge", "limits_from_metadata", "merge", "limits_metadata", "train_limits",
            "wet_rail_adhesion"]

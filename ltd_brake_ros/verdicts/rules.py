@@ -10,8 +10,9 @@ import numpy as np
 from ..physics.constants import G
 
 __all__ = ["ADHESION_AT_SPEED_LIMIT", "ADHESION_LIMIT", "ADHESION_LIMIT_WSP",
-           "ADHESION_SPEED_KMH", "BUFF_STRENGTH_N", "CRITERIA", "DRAFT_STRENGTH_N",
-           "MEAN_ADHESION_MIN_DISTANCE_M", "MEAN_ADHESION_MIN_INITIAL_KMH",
+           "ADHESION_SPEED_KMH", "BUFF_STRENGTH_N", "CRITERIA", "DEFAULT_MAX_SPEED_KMH",
+           "DESIGN_END_KMH", "DRAFT_STRENGTH_N", "design_adhesion",
+           "MEAN_ADHESION_MIN_DISTANCE_M", "MEAN_ADHESION_MIN_INITIAL_KMH", "REST_ADHESION",
            "STANDSTILL_SAMPLE_M_S", "Rule", "TrainLimits", "WHEEL_TEMPERATURE_LIMIT_K",
            "default_coupler_limits", "limits_from_metadata", "limits_metadata", "train_limits",
            "wet_rail_adhesion"]
@@ -26,15 +27,21 @@ DRAFT_STRENGTH_N = 850e3
 #: are not verified in the standard's text).
 BUFF_STRENGTH_N = 2000e3
 #: Default limit of the mean utilised adhesion of a vehicle without wheel-slide protection
-#: [-]: 0.12, the demand above which freight wagons with tread brakes need wheel-slide
-#: protection (WAG TSI, Regulation (EU) 321/2013, as summarised; not verified in its text),
-#: judged on the mean of a braking calculation (EN 14531-1, secondary source).
+#: [-]: 0.12, above which tread-braked units need wheel-slide protection (TSI LOC&PAS,
+#: Regulation (EU) 1302/2014, 4.2.4.6.2, read in its German text; the WAG TSI's clause for
+#: wagons, Regulation (EU) 321/2013, not read: a lecture's summary gives the same 0.12),
+#: judged on the mean of a braking calculation (EN 14531-1's mean-value method).
 ADHESION_LIMIT = 0.12
 #: Default limit of the mean utilised adhesion of a vehicle with wheel-slide protection [-]:
-#: 0.15, the adhesion a braking calculation may assume (TSI LOC&PAS, Regulation (EU)
-#: 1302/2014, 4.2.4.6.1, for locomotives and passenger stock: an analogy for wagons; not
-#: verified in its text).
+#: 0.15, the braking adhesion a calculation may assume at 30-250 km/h (TSI LOC&PAS 4.2.4.6.1,
+#: read in its German text, for locomotives and passenger stock: for wagons an analogy, not
+#: verified; no source for freight found).
 ADHESION_LIMIT_WSP = 0.15
+#: Declared maximum speed of a vehicle that declares none [km/h]: 100, the "S" marking of
+#: European freight wagons (secondary sources; medium), the speed of the design check's stop.
+DEFAULT_MAX_SPEED_KMH = 100.0
+#: The braked part of a stop ends at this speed, as braking calculations count it [km/h].
+DESIGN_END_KMH = 5.0
 #: Instantaneous adhesion demand that earns a warning above :data:`ADHESION_SPEED_KMH` [-]
 #: (the same TSI LOC&PAS value, not verified in its text).
 ADHESION_AT_SPEED_LIMIT = 0.15
@@ -51,6 +58,16 @@ MEAN_ADHESION_MIN_DISTANCE_M = 1.0
 #: Sampled vehicles this slow are at rest: no adhesion demand is taken from them [m/s]
 #: (the simulator's standstill speed).
 STANDSTILL_SAMPLE_M_S = 1e-3
+#: Adhesion of the rail a vehicle at rest may use to hold [-]: 0.12, what a parking-brake
+#: calculation may assume at most (TSI LOC&PAS, Regulation (EU) 1302/2014, 4.2.4.6.1, read in
+#: its German text: locomotives and passenger stock, an analogy for wagons).
+REST_ADHESION = 0.12
+#: Static friction of a brake at rest, taken equal to its kinetic friction law at v = 0
+#: (Karwatzki's speed factor 0.6 for P10 blocks, Eq. 9; the disc's mu_eff, Eq. 10): no
+#: static friction coefficient of P10 blocks or of disc pads was found; an assumption, not
+#: verified.
+STATIC_FRICTION_ORIGIN = ("static brake friction taken as the kinetic law at rest (not "
+                          "verified: no static coefficient of P10 blocks or disc pads found)")
 #: Wet-rail adhesion as a fraction of dry (Koffman 1948, secondary source: ~0.6).
 WET_RAIL_FACTOR = 0.6
 #: Wheel temperature (the lumped model's mean wheel temperature) that earns a warning on a
@@ -93,9 +110,10 @@ class Rule(NamedTuple):
     quantity : str
         What is compared with the limit.
     element : str
-        ``coupler`` (numbered from 1 behind the head) or ``vehicle`` (from 0 at the head).
+        ``coupler`` (numbered from 1 behind the head), ``vehicle`` (from 0 at the head) or
+        ``train`` (the whole train, number 0).
     unit : str
-        ``kN``, ``mm`` or ``-``.
+        ``kN``, ``mm``, ``K``, ``km/h`` or ``-``.
     severity : str
         Status when a limit is exceeded: ``FAIL``, ``WARN`` or ``INFO``.
     scope : str
@@ -122,17 +140,21 @@ CRITERIA = {
                                "FAIL", "every coupler, all speeds"),
     "coupler_travel": Rule("Within the coupler's travel", "deflection beyond the travel",
                            "coupler", "mm", "FAIL", "every coupler, all speeds"),
-    "adhesion": Rule("Mean utilised adhesion", "mean brake force at the rails / weight",
-                     "vehicle", "-", "FAIL",
-                     f"braked vehicles, stops from {MEAN_ADHESION_MIN_INITIAL_KMH:.0f} km/h or "
-                     "more, from full application to 5 km/h"),
-    "adhesion_at_speed": Rule("Adhesion demand at speed", "brake force / weight", "vehicle",
-                              "-", "WARN", f"braked vehicles above {ADHESION_SPEED_KMH:.0f} km/h"),
-    "adhesion_low_speed": Rule("Adhesion demand at low speed", "brake force / weight",
-                               "vehicle", "-", "INFO",
-                               f"braked vehicles below {ADHESION_SPEED_KMH:.0f} km/h, moving"),
-    "standstill_holding": Rule("Holding at rest", "force to hold (couplers, grade)", "vehicle",
-                               "kN", "FAIL", "every vehicle after the train has stopped"),
+    "adhesion": Rule("Mean utilised adhesion by design", "mean brake force at the rails / "
+                     "weight", "vehicle", "-", "FAIL",
+                     "every braked vehicle, whatever the run: a stop from its maximum speed at "
+                     "full application to 5 km/h, by EN 14531-1's mean-value method"),
+    "adhesion_demand": Rule("Adhesion demand against the rail", "brake force / weight",
+                            "vehicle", "-", "WARN",
+                            "braked vehicles while moving, step by step as EN 14531-2 scopes "
+                            "adhesion requirements, against the declared rail condition"),
+    "standstill_holding": Rule("Holding at rest", "force to hold (grade, external forces)",
+                               "train", "kN", "FAIL", "the train once it has settled at rest, "
+                               "until traction is commanded"),
+    "runaway": Rule("No movement from rest without traction", "speed from rest", "vehicle",
+                    "km/h", "FAIL", "every vehicle once the train has settled at rest (every "
+                    "vehicle within 1 mm/s for 2 s), until traction is commanded, brake "
+                    "applied or released"),
     "wheel_temperature": Rule("Wheel temperature", "mean wheel temperature", "vehicle", "K",
                               "WARN", "vehicles with block brakes, all speeds"),
 }
@@ -143,19 +165,24 @@ _DEFAULT_ORIGIN = {
                      "verified in its text)",
     "endurable_lcf": "not given (EN 15839: a property of each vehicle; set limits."
                      "endurable_lcf_kN in the consist)",
-    "adhesion": "default 0.12 without wheel-slide protection (WAG TSI, Reg. 321/2013, not "
-                "verified in its text), 0.15 with it (TSI LOC&PAS 4.2.4.6.1, not verified); "
-                "mean of a braking calculation (EN 14531-1)",
-    "adhesion_at_speed": "0.15: adhesion a braking calculation may assume (TSI LOC&PAS "
-                         "4.2.4.6.1, locomotives and passenger stock; not verified in its text)",
-    "adhesion_low_speed": "information: a wet rail's adhesion, Curtius-Kniffler x 0.6 "
-                          "(secondary sources), never a failure",
+    "adhesion": "default 0.12 without wheel-slide protection (TSI LOC&PAS 4.2.4.6.2's trigger "
+                "for tread-braked units; the WAG TSI's clause not read), 0.15 with it (LOC&PAS "
+                "analogy, not verified); the vehicle braked alone, (F - (rho - 1) M a) / (M g) "
+                "distance-weighted; maximum speed the vehicle's, else 100 km/h ('S' marking, "
+                "assumed)",
+    "adhesion_demand": "the rail's available adhesion of the declared condition (wheel slide "
+                       "expected beyond it: a warning, never a failure; the run is not "
+                       "changed)",
     "coupler_travel": "the coupler model's valid range",
     "buffer_limit_state": "not assessed: the coupler model's buffer end force is not known",
-    "standstill_holding": "what a vehicle at rest holds: its kinetic brake force at rest, or "
-                          "with the brake applied 0.30 m g at full application (dry-rail "
-                          "adhesion at rest, secondary sources; the clamped brake assumed to "
-                          "hold the wheel)",
+    "standstill_holding": "what the train holds at rest, as a parking-brake calculation adds "
+                          "it up: each vehicle the static friction of its brake, at most the "
+                          "rail's adhesion at rest, 0.12 m g (the most a parking-brake "
+                          "calculation may assume, TSI LOC&PAS 4.2.4.6.1: an analogy for "
+                          "wagons), plus its running resistance at rest (Eq. 2); "
+                          + STATIC_FRICTION_ORIGIN,
+    "runaway": "a train at rest moves only under traction: any vehicle faster than the "
+               "standstill speed, 1 mm/s, after the train has settled is a runaway",
     "wheel_temperature": "default 623 K (350 C): a conservative value chosen, no limit "
                          "verified (none retrieved from EN 13979-1's thermomechanical "
                          "assessment); 50 K above this model's 572 K for the freight-wagon "
@@ -195,6 +222,15 @@ class TrainLimits:
     wheel_temperature_K : ndarray
         Per vehicle, the wheel temperature that earns a warning [K]; inf where not assessed
         (no block brakes; empty: none assessed).
+    design_adhesion : ndarray
+        Per vehicle, the mean utilised adhesion of a stop from its maximum speed at full
+        application (:func:`design_adhesion`) [-]; NaN where unbraked (empty: not known).
+    max_speed_kmh : ndarray
+        Per vehicle, the maximum speed of that stop [km/h].
+    rail : str
+        The declared rail condition the demand is judged against (``dry``, ``wet``, ...).
+    rail_table : ndarray, shape (2, k)
+        Its available adhesion: speed [m/s] and mu [-] (:mod:`~.physics.brakes.adhesion`).
     buffer_limit_N : ndarray
         Per coupler, the buffers' limit state: twice the declared end force of one side buffer
         [N] (:func:`~ltd_brake_ros.physics.couplers.buffer_limit`); beyond it the run is
@@ -214,6 +250,10 @@ class TrainLimits:
     travel_mm: tuple = (-math.inf, math.inf)
     wheel_temperature_K: np.ndarray = field(default_factory=lambda: np.zeros(0))
     buffer_limit_N: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    design_adhesion: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    max_speed_kmh: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    rail: str = "dry"
+    rail_table: np.ndarray = field(default_factory=lambda: _rail("dry").table)
 
     def of(self, criterion: str) -> np.ndarray:
         """The per-coupler or per-vehicle limits of a criterion."""
@@ -224,9 +264,9 @@ class TrainLimits:
                 "buffer_limit_state": (self.buffer_limit_N
                                        if self.buffer_limit_N.size == self.draft_strength_N.size
                                        else np.full(self.draft_strength_N.size, math.inf)),
-                "adhesion_at_speed": np.full(n, ADHESION_AT_SPEED_LIMIT),
-                "adhesion_low_speed": np.full(n, math.inf),
-                "standstill_holding": np.full(n, math.inf),
+                "adhesion_demand": np.full(n, math.nan),
+                "standstill_holding": np.full(1, math.inf),
+                "runaway": np.full(n, STANDSTILL_SAMPLE_M_S * 3.6),
                 "wheel_temperature": (self.wheel_temperature_K
                                       if self.wheel_temperature_K.size == n
                                       else np.full(n, math.inf))}[criterion]
@@ -260,8 +300,65 @@ def _origin_text(criterion: str, origins: set) -> str:
     return "; ".join(parts) or "no coupler"
 
 
+def _rail(name):
+    """The adhesion condition named (:func:`~ltd_brake_ros.physics.brakes.adhesion.condition`,
+    or a condition; None or ``off``: a dry rail, the default of the run check)."""
+    from ..physics.brakes import adhesion
+
+    try:
+        cond = adhesion.condition(name)
+    except ValueError:  # a curve file's name stored in a recording: its table is not
+        cond = adhesion.OFF
+    return cond if cond.on else adhesion.CONDITIONS["dry"]
+
+
+def design_adhesion(consist, friction_arrays) -> tuple[np.ndarray, np.ndarray]:
+    """Each braked vehicle's mean utilised adhesion of a stop from its maximum speed, by the
+    mean-value method: the vehicle braked alone at full application from its maximum speed
+    to :data:`DESIGN_END_KMH`, its retarding force F(v) from the friction law (Karwatzki's
+    speed factor for P10 blocks, Eq. 9; constant for discs, Eq. 10).
+
+    The rails take the brake force less what decelerates the rotating masses, F - (rho - 1) M
+    a, with a = F / (rho M) braked alone; distance-weighted over the stop, the mean is the
+    equivalent deceleration over g: (v1^2 - v2^2) / (2 g s), s = int rho M v / F(v) dv.
+
+    Parameters
+    ----------
+    consist : Consist
+    friction_arrays : FrictionArrays
+        The train's compiled friction law (its ``full_scale_N`` and ``kind``).
+
+    Returns
+    -------
+    tau : ndarray
+        [-]; NaN where the vehicle is unbraked.
+    max_speed_kmh : ndarray
+        The maximum speed each stop starts from (the vehicle's, else
+        :data:`DEFAULT_MAX_SPEED_KMH`) [km/h].
+    """
+    from ..physics.brakes import friction
+
+    vs = consist.vehicles
+    vmax = np.array([v.max_speed_kmh or DEFAULT_MAX_SPEED_KMH for v in vs], float)
+    tau = np.full(len(vs), np.nan)
+    scale = np.asarray(friction_arrays.full_scale_N, float)
+    kind = np.asarray(friction_arrays.kind)
+    for i, v in enumerate(vs):
+        if scale[i] <= 0.0 or vmax[i] <= DESIGN_END_KMH:
+            continue
+        kmh = np.linspace(DESIGN_END_KMH, vmax[i], 2001)
+        f = scale[i] * (0.6 * (kmh + 100.0) / (5.0 * kmh + 100.0)
+                        if kind[i] == friction.BRAKE_BLOCKS else np.ones_like(kmh))
+        ms = kmh / 3.6
+        y = v.inertia_factor * v.mass_kg * ms / f
+        s = float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(ms)))
+        tau[i] = (ms[-1] ** 2 - ms[0] ** 2) / (2.0 * G * s)
+    return tau, vmax
+
+
 def train_limits(consist, coupler_params=None, *, adhesion_limit: float | None = None,
-                 friction_arrays=None, coupler_arrays=None) -> TrainLimits:
+                 friction_arrays=None, coupler_arrays=None,
+                 rail: str | None = None) -> TrainLimits:
     """The limits of a train: consist ``limits``, the coupler model's, the defaults.
 
     Parameters
@@ -279,6 +376,8 @@ def train_limits(consist, coupler_params=None, *, adhesion_limit: float | None =
         a recording's report needs to find the braked part of a stop.
     coupler_arrays : CouplerArrays, optional
         The compiled coupler model: its valid range, the travel the couplers are judged by.
+    rail : str, optional
+        The rail condition the adhesion demand is judged against (default ``dry``).
 
     Returns
     -------
@@ -326,9 +425,9 @@ def train_limits(consist, coupler_params=None, *, adhesion_limit: float | None =
               "buffer_limit_state": o_buffer,
               "adhesion": (_origin_text("adhesion", o_adh) if adhesion_limit is None else
                            "campaign file" + ("; consist limits" if "consist" in o_adh else "")),
-              "adhesion_at_speed": _DEFAULT_ORIGIN["adhesion_at_speed"],
-              "adhesion_low_speed": _DEFAULT_ORIGIN["adhesion_low_speed"],
+              "adhesion_demand": "",
               "standstill_holding": _DEFAULT_ORIGIN["standstill_holding"],
+              "runaway": _DEFAULT_ORIGIN["runaway"],
               "wheel_temperature": _DEFAULT_ORIGIN["wheel_temperature"]}
     vs = consist.vehicles
     weight = np.array([v.mass_kg for v in vs], float) * G
@@ -338,8 +437,13 @@ def train_limits(consist, coupler_params=None, *, adhesion_limit: float | None =
             else np.zeros(len(vs)))
     rot = np.array([(v.inertia_factor - 1.0) * v.mass_kg for v in vs], float)
     wheel = np.where(blocks, WHEEL_TEMPERATURE_LIMIT_K, math.inf)
+    cond = _rail(rail)
+    origin["adhesion_demand"] = (f"{cond.name} rail: {cond.source}; "
+                                 + _DEFAULT_ORIGIN["adhesion_demand"])
+    design, vmax = (design_adhesion(consist, friction_arrays) if friction_arrays is not None
+                    else (np.zeros(0), np.zeros(0)))
     return TrainLimits(draft, buff, lcf, adhesion, weight, origin, braked, blocks, full, rot,
-                       travel, wheel, buffer_limit)
+                       travel, wheel, buffer_limit, design, vmax, cond.name, cond.table)
 
 
 def limits_metadata(limits: TrainLimits) -> dict:
@@ -369,6 +473,10 @@ def limits_metadata(limits: TrainLimits) -> dict:
             "wheel_temperature_K": [None if not math.isfinite(x) else x
                                     for x in limits.wheel_temperature_K.tolist()],
             "buffer_limit_kN": kn(limits.buffer_limit_N),
+            "design_adhesion": [None if not math.isfinite(x) else x
+                                for x in limits.design_adhesion.tolist()],
+            "max_speed_kmh": limits.max_speed_kmh.tolist(), "rail": limits.rail,
+            "rail_adhesion": np.asarray(limits.rail_table, float).tolist(),
             "origin": dict(limits.origin)}
 
 
@@ -430,12 +538,27 @@ def limits_from_metadata(meta, n_vehicles: int) -> TrainLimits | None:
             else np.zeros(0)
         # recordings made before the buffers' limit state was stored: not assessed
         buffers = arr("buffer_limit_kN", nc, 1e3) if "buffer_limit_kN" in meta else np.zeros(0)
+        # the adhesion design check: recordings made before it was stored do not assess it
+        design, vmax = np.zeros(0), np.zeros(0)
+        if "design_adhesion" in meta and "max_speed_kmh" in meta:
+            values = meta["design_adhesion"]
+            if not isinstance(values, list) or len(values) != n_vehicles:
+                raise ValueError("design_adhesion")
+            design = np.array([math.nan if x is None else float(x) for x in values])
+            vmax = arr("max_speed_kmh", n_vehicles)
+        rail_name, rail_table = "dry", _rail("dry").table
+        if "rail" in meta and "rail_adhesion" in meta:
+            rail_table = np.array(meta["rail_adhesion"], float)
+            if rail_table.ndim != 2 or rail_table.shape[0] != 2 or not rail_table.shape[1] \
+                    or not np.isfinite(rail_table).all() or (rail_table[1] <= 0.0).any():
+                raise ValueError("rail_adhesion")
+            rail_name = str(meta["rail"])
         return TrainLimits(arr("draft_strength_kN", nc, 1e3), arr("buff_strength_kN", nc, 1e3),
                            arr("endurable_lcf_kN", nc, 1e3), arr("adhesion_limit", n_vehicles),
                            arr("mass_t", n_vehicles, 1e3 * G),
                            {str(k): str(v) for k, v in origin.items()}
                            if isinstance(origin, dict) else {}, braked, blocks, full, rot,
-                           travel, hot, buffers)
+                           travel, hot, buffers, design, vmax, rail_name, rail_table)
     except (KeyError, TypeError, ValueError, OverflowError):
         return None
 
@@ -462,6 +585,6 @@ def default_coupler_limits(n_vehicles: int) -> TrainLimits:
                         "coupler_travel": "not assessed: the recording holds no coupler travel",
                         "buffer_limit_state": "not assessed: the recording holds no buffer end "
                                               "force",
-                        "adhesion": none, "adhesion_at_speed": none,
-                        "adhesion_low_speed": none, "standstill_holding": none,
+                        "adhesion": none, "adhesion_demand": none,
+                        "standstill_holding": none, "runaway": none,
                         "wheel_temperature": none})

@@ -1,16 +1,16 @@
 """The verdicts table of a run: its criteria, their exceedances, and what other outputs take."""
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from .rules import (ADHESION_AT_SPEED_LIMIT, CRITERIA, MEAN_ADHESION_MIN_INITIAL_KMH, Rule,
-                    TrainLimits, wet_rail_adhesion)
+from .rules import CRITERIA, Rule, TrainLimits
 
 __all__ = ["Criterion", "Exceedance", "FLAG_NAMES", "NON_PHYSICAL_CRITERIA", "VehicleDemand",
-           "Verdicts", "diagnostic_values", "flags", "judge"]
+           "Verdicts", "diagnostic_values", "flags", "judge", "merge"]
 
 #: The criteria whose exceedance marks a run non-physical, in order of precedence: a coupling
 #: beyond its buffers' limit state, or beyond its coupler model's travel.
@@ -25,13 +25,15 @@ def _amount(unit: str, value: float, limit: float) -> str:
         return f"{value:.1f} mm"
     if unit == "K":
         return f"{value:.0f} K > {limit:.0f} K (+{value - limit:.0f} K)"
+    if unit == "km/h":
+        return f"{value:.3g} km/h from rest"
     if not math.isfinite(limit):
         return f"{value:.3f}"
     return f"{value:.3f} > {limit:.3f} (+{value - limit:.3f})"
 
 
 #: JSON scale and key suffix of each criterion unit (``-``: none).
-_UNITS = {"kN": (1e-3, "_kN"), "mm": (1.0, "_mm"), "K": (1.0, "_K")}
+_UNITS = {"kN": (1e-3, "_kN"), "mm": (1.0, "_mm"), "K": (1.0, "_K"), "km/h": (1.0, "_kmh")}
 
 
 @dataclass(frozen=True)
@@ -43,7 +45,8 @@ class Exceedance:
     criterion : str
         A key of :data:`CRITERIA`.
     element : str
-        ``coupler`` (numbered from 1 behind the head) or ``vehicle`` (from 0 at the head).
+        ``coupler`` (numbered from 1 behind the head), ``vehicle`` (from 0 at the head) or
+        ``train`` (the whole train, number 0).
     number : int
     value : float
         Its worst force magnitude [N], excursion [mm], adhesion demand [-] or temperature [K].
@@ -76,7 +79,10 @@ class Exceedance:
         """One line: which, by how much, when, at what speed."""
         rule = CRITERIA[self.criterion]
         speed = f", {self.speed_kmh:.1f} km/h" if math.isfinite(self.speed_kmh) else ""
-        return (f"{self.element} {self.number}: {rule.quantity} "
+        who = "train" if self.element == "train" else f"{self.element} {self.number}"
+        if not math.isfinite(self.time_s):  # not of a moment: a design check
+            return f"{who}: {rule.quantity} {_amount(rule.unit, self.value, self.limit)}{speed}"
+        return (f"{who}: {rule.quantity} "
                 f"{_amount(rule.unit, self.value, self.limit)} at t = {self.time_s:.2f} s"
                 f"{speed} (first at t = {self.first_time_s:.2f} s)")
 
@@ -86,7 +92,8 @@ class Exceedance:
         scale, suffix = _UNITS.get(unit, (1.0, ""))
         return {"criterion": self.criterion, self.element: self.number,
                 f"value{suffix}": self.value * scale, f"limit{suffix}": self.limit * scale,
-                f"excess{suffix}": self.excess * scale, "time_s": self.time_s,
+                f"excess{suffix}": self.excess * scale,
+                "time_s": self.time_s if math.isfinite(self.time_s) else None,
                 "speed_kmh": self.speed_kmh if math.isfinite(self.speed_kmh) else None,
                 "first_time_s": self.first_time_s}
 
@@ -149,6 +156,12 @@ class Criterion:
             return "INFO"
         return self.rule.severity if self.exceedances else "PASS"
 
+    def rule_speed_text(self) -> str:
+        """The speed a design check's worst value was computed from (its exceedances'), as
+        text."""
+        return next((f"{e.speed_kmh:.0f} km/h" for e in self.exceedances
+                     if e.number == self.worst_number), "its maximum speed")
+
     def _limit_text(self) -> str:
         unit = self.rule.unit
         f = ((lambda x: f"{x / 1e3:.0f} kN") if unit == "kN" else
@@ -168,16 +181,24 @@ class Criterion:
         unit = rule.unit
         worst = (f"{self.worst_value / 1e3:.0f} kN" if unit == "kN" else
                  f"{self.worst_value:.1f} mm" if unit == "mm" else
+                 f"{self.worst_value:.3g} km/h" if unit == "km/h" else
                  f"{self.worst_value:.0f} K ({self.worst_value - 273.15:.0f} C)" if unit == "K"
                  else f"{self.worst_value:.3f}")
         limit = "" if rule.severity == "INFO" else f"limit {self._limit_text()}; "
         if unit == "mm" and not self.exceedances:
             lines = [f"{self.status:<4}  {rule.title} ({rule.scope}): no coupler went beyond its "
                      "travel"]
+        elif unit == "km/h" and not self.exceedances:
+            lines = [f"{self.status:<4}  {rule.title} ({rule.scope}): no vehicle moved from "
+                     "rest"]
         else:
             lines = [f"{self.status:<4}  {rule.title} ({rule.scope}): {limit}worst "
-                     f"{rule.quantity} {worst} at {rule.element} {self.worst_number} "
-                     f"(t = {self.worst_time_s:.2f} s)" + (f"; {self.note}" if self.note else "")]
+                     f"{rule.quantity} {worst}"
+                     + ("" if rule.element == "train" else
+                        f" at {rule.element} {self.worst_number}") + " "
+                     + (f"(t = {self.worst_time_s:.2f} s)" if math.isfinite(self.worst_time_s)
+                        else f"(a stop from {self.rule_speed_text()})")
+                     + (f"; {self.note}" if self.note else "")]
         lines.append(f"        source: {self.origin}")
         if rule.severity != "INFO":
             shown = self.exceedances if most is None else self.exceedances[:most]
@@ -199,7 +220,8 @@ class Criterion:
                 f"limit_min{unit}": num(self.limit_min), f"limit_max{unit}": num(self.limit_max),
                 "origin": self.origin, f"worst{unit}": num(self.worst_value),
                 f"worst_{rule.element}": self.worst_number,
-                "worst_time_s": self.worst_time_s, "note": self.note,
+                "worst_time_s": self.worst_time_s if math.isfinite(self.worst_time_s) else None,
+                "note": self.note,
                 "exceedances": [e.as_dict() for e in self.exceedances]}
 
 
@@ -355,8 +377,9 @@ class VehicleDemand:
 def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_kmh,
           peak_buff_N, peak_buff_time_s, buff_speed_kmh, demand: VehicleDemand | None = None,
           travel_beyond_mm=None, travel_time_s=None, travel_speed_kmh=None,
-          holding=None, holding_reason: str = "not assessed: the train has not stopped",
-          first_time_s: dict | None = None, wheel_temperature=None) -> Verdicts:
+          holding=None, holding_reason: str = "not assessed: the train has not settled at rest",
+          first_time_s: dict | None = None, wheel_temperature=None, runaway=None,
+          rail_demand=None) -> Verdicts:
     """The verdicts table from a run's per-coupler peaks and per-vehicle adhesion records.
 
     Parameters
@@ -369,13 +392,14 @@ def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_k
     draft_speed_kmh, buff_speed_kmh : array_like
         Speed at those times [km/h].
     demand : VehicleDemand, optional
-        Adhesion records (omitted: the adhesion criteria are not assessed).
+        The run's adhesion records (its mean utilised adhesion is noted beside the design
+        check, :attr:`TrainLimits.design_adhesion`).
     travel_beyond_mm, travel_time_s, travel_speed_kmh : array_like, optional
         Largest excursion of each coupler beyond its travel [mm] (0: none), when, the head's
         speed then (omitted: the travel is not assessed).
     holding : tuple of array_like, optional
         (force to hold [N], what the vehicle holds [N], when [s]) of each vehicle at its
-        worst moment at rest after the stop (omitted: not assessed, ``holding_reason``).
+        worst moment settled at rest (omitted: not assessed, ``holding_reason``).
     holding_reason : str, optional
         Why holding is not assessed when ``holding`` is omitted.
     first_time_s : dict, optional
@@ -384,6 +408,14 @@ def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_k
     wheel_temperature : tuple of array_like, optional
         (peak wheel temperature [K], when [s]) of each vehicle, NaN where it has no block
         brakes (omitted: not assessed).
+    rail_demand : tuple of array_like, optional
+        (adhesion demand [-], the rail's available adhesion then [-], when [s], at what speed
+        [km/h]) of each vehicle at its largest demand relative to the rail, when -1: never
+        braked while moving (omitted: the run check is not assessed).
+    runaway : tuple of array_like, optional
+        (largest speed after the train had settled, without traction [km/h], when it first
+        moved [s], -1: never) of each vehicle (omitted: not assessed, the train never
+        settled).
 
     Returns
     -------
@@ -414,7 +446,7 @@ def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_k
                                np.asarray(travel_speed_kmh, float),
                                first("coupler_travel", beyond.size), 1,
                                origin.get("coupler_travel", "")))
-    rows += _adhesion_rows(limits, demand, first)
+    rows += _adhesion_rows(limits, demand, first, rail_demand)
     if holding is None:
         rows.append(Criterion("standstill_holding", False, math.inf, math.inf,
                               holding_reason if limits.adhesion_limit.size else origin.get(
@@ -424,6 +456,16 @@ def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_k
         rows.append(_criterion("standstill_holding", need, cap, t, np.zeros(need.size),
                                first("standstill_holding", need.size), 0,
                                origin.get("standstill_holding", "")))
+    if runaway is None or not limits.adhesion_limit.size:
+        rows.append(Criterion("runaway", False, math.inf, math.inf,
+                              "not assessed: the train has not settled at rest"
+                              if limits.adhesion_limit.size else
+                              origin.get("runaway", "not assessed"), 0.0, 0, 0.0))
+    else:
+        speed, t = (np.asarray(a, float) for a in runaway)
+        rows.append(_criterion("runaway", speed, limits.of("runaway"),
+                               np.where(t >= 0.0, t, 0.0), speed, np.asarray(t, float), 0,
+                               origin.get("runaway", "")))
     rows.append(_temperature_row(limits, wheel_temperature, first))
     return Verdicts(tuple(rows))
 
@@ -446,53 +488,101 @@ def _temperature_row(limits: TrainLimits, wheel_temperature, first) -> Criterion
                       limits.origin.get(name, ""), assessed=assessed)
 
 
-def _adhesion_rows(limits: TrainLimits, d: VehicleDemand | None, first) -> list[Criterion]:
+def _adhesion_rows(limits: TrainLimits, d: VehicleDemand | None, first,
+                   rail_demand=None) -> list[Criterion]:
+    """The adhesion design check (every run, the vehicles' own stops from their maximum
+    speed) and the run check (the demand against the declared rail)."""
     n = limits.adhesion_limit.size
-    names = ("adhesion", "adhesion_at_speed", "adhesion_low_speed")
-    if d is None or n == 0:
-        return [Criterion(name, False, math.inf, math.inf,
-                          limits.origin.get(name, "not assessed"), 0.0, 0, 0.0)
-                for name in names]
-    braked = limits.braked if limits.braked.size == n else np.ones(n, bool)
     origin = limits.origin
+    if n == 0:
+        return [Criterion(name, False, math.inf, math.inf, origin.get(name, "not assessed"),
+                          0.0, 0, 0.0) for name in ("adhesion", "adhesion_demand")]
+    braked = limits.braked if limits.braked.size == n else np.ones(n, bool)
     rows = []
-    # mean utilised adhesion: stops from the calculation's reference speed on
-    mean = np.asarray(d.mean, float)
-    if not math.isfinite(d.initial_speed_kmh) or not np.isfinite(mean[braked]).any():
-        rows.append(Criterion("adhesion", False, math.inf, math.inf,
-                              "not assessed: no braked part of a stop (full application above "
-                              "5 km/h)", 0.0, 0, 0.0))
-    elif d.initial_speed_kmh < MEAN_ADHESION_MIN_INITIAL_KMH - 0.5:
-        k = int(np.nanargmax(np.where(braked, mean, np.nan)))
-        rows.append(Criterion("adhesion", False, math.inf, math.inf,
-                              f"not judged: a stop from {d.initial_speed_kmh:.0f} km/h, below the "
-                              f"{MEAN_ADHESION_MIN_INITIAL_KMH:.0f} km/h of mean-value brake "
-                              f"calculations (largest mean {mean[k]:.3f} at vehicle {k})",
-                              float(mean[k]), k, float(d.mean_end_time_s[k])))
-    else:
-        rows.append(_criterion("adhesion", mean, limits.adhesion_limit, d.mean_end_time_s,
-                               d.mean_end_speed_kmh, first("adhesion", n), 0,
-                               origin.get("adhesion", ""), assessed=braked & np.isfinite(mean)))
-    seen = np.asarray(d.at_speed_time_s) > 0.0
-    rows.append(_criterion("adhesion_at_speed", np.asarray(d.at_speed, float),
-                           np.full(n, ADHESION_AT_SPEED_LIMIT), np.asarray(d.at_speed_time_s),
-                           np.asarray(d.at_speed_kmh), first("adhesion_at_speed", n), 0,
-                           origin.get("adhesion_at_speed", ""), assessed=braked & seen))
-    low = np.asarray(d.low_speed, float)
-    seen = np.asarray(d.low_speed_time_s) > 0.0
+    design = np.asarray(limits.design_adhesion, float)
     note = ""
-    if (braked & seen).any():
-        k = int(np.argmax(np.where(braked & seen, low, -np.inf)))
-        wet = float(wet_rail_adhesion(d.low_speed_kmh[k]))
-        if low[k] > wet:
-            note = (f"above a wet rail's {wet:.3f} at {d.low_speed_kmh[k]:.2g} km/h: wheel "
-                    "slide likely on a wet rail")
-    rows.append(_criterion("adhesion_low_speed", low, np.full(n, math.inf),
-                           np.asarray(d.low_speed_time_s), np.asarray(d.low_speed_kmh),
-                           first("adhesion_low_speed", n), 0,
-                           origin.get("adhesion_low_speed", ""), assessed=braked & seen,
-                           note=note))
+    if d is not None and math.isfinite(d.initial_speed_kmh):
+        mean = np.where(braked, np.asarray(d.mean, float), np.nan)
+        if np.isfinite(mean).any():
+            k = int(np.nanargmax(mean))
+            note = (f"this run's stop from {d.initial_speed_kmh:.0f} km/h: largest mean "
+                    f"{mean[k]:.3f} at vehicle {k}")
+    if design.size != n or not np.isfinite(design[braked]).any():
+        rows.append(Criterion("adhesion", False, math.inf, math.inf,
+                              "not assessed: no braked vehicle's stop computed (a recording "
+                              "made before the design check was stored)"
+                              if design.size != n else "not assessed: no braked vehicle",
+                              0.0, 0, 0.0))
+    else:
+        rows.append(_criterion("adhesion", design, limits.adhesion_limit, np.full(n, math.nan),
+                               np.asarray(limits.max_speed_kmh, float), first("adhesion", n), 0,
+                               origin.get("adhesion", ""), assessed=braked & np.isfinite(design),
+                               note=note))
+    if rail_demand is None:
+        rows.append(Criterion("adhesion_demand", False, math.inf, math.inf,
+                              "not assessed: no braked vehicle moved under its brake",
+                              0.0, 0, 0.0))
+    else:
+        tau, mu, when, kmh = (np.asarray(a, float) for a in rail_demand)
+        seen = braked & (when >= 0.0) & np.isfinite(mu)
+        row = _criterion("adhesion_demand", tau, mu, when, kmh, first("adhesion_demand", n), 0,
+                         origin.get("adhesion_demand", ""), assessed=seen)
+        if row.exceedances:
+            row = dataclasses.replace(row, note=f"wheel slide expected on a {limits.rail} rail")
+        rows.append(row)
     return rows
+
+
+def merge(tables) -> Verdicts:
+    """One table of several parts of a run (its stops and the rest), each judged apart.
+
+    Per criterion: the worst value over the parts, every coupler or vehicle beyond its limit
+    in any part (its worst excess, first seen at its earliest), the range of the limits; a
+    criterion is assessed where any part assessed it.
+
+    Parameters
+    ----------
+    tables : sequence of Verdicts
+        In time order, with the same criteria.
+
+    Returns
+    -------
+    Verdicts
+    """
+    tables = list(tables)
+    if len(tables) == 1:
+        return tables[0]
+    rows = []
+    for name in (c.name for c in tables[0].criteria):
+        parts = [t[name] for t in tables]
+        judged = [c for c in parts if c.assessed]
+        if not judged:
+            # not assessed anywhere: the last part's reason (the freshest), keeping a
+            # largest value shown as information (a mean not judged)
+            shown = max(parts, key=lambda c: c.worst_value)
+            rows.append(dataclasses.replace(parts[-1], worst_value=shown.worst_value,
+                                            worst_number=shown.worst_number,
+                                            worst_time_s=shown.worst_time_s))
+            continue
+        worst = max(judged, key=lambda c: c.worst_value)
+        by_element: dict[int, Exceedance] = {}
+        for c in judged:
+            for e in c.exceedances:
+                old = by_element.get(e.number)
+                if old is None:
+                    by_element[e.number] = e
+                    continue
+                first = min(old.first_time_s, e.first_time_s)
+                keep = e if e.excess > old.excess else old
+                by_element[e.number] = dataclasses.replace(keep, first_time_s=first)
+        ex = sorted(by_element.values(), key=lambda e: -(e.excess / e.limit if e.limit > 0.0
+                                                         else e.excess))
+        notes = [c.note for c in judged if c.note]
+        rows.append(Criterion(name, True, min(c.limit_min for c in judged),
+                              max(c.limit_max for c in judged), worst.origin,
+                              worst.worst_value, worst.worst_number, worst.worst_time_s,
+                              tuple(ex), worst.note or (notes[-1] if notes else "")))
+    return Verdicts(tuple(rows))
 
 
 def diagnostic_values(verdicts: Verdicts) -> dict:
@@ -528,7 +618,7 @@ def diagnostic_values(verdicts: Verdicts) -> dict:
 FLAG_NAMES = {"draft_strength": "draft_ok", "buff_strength": "buff_ok",
               "endurable_lcf": "lcf_ok", "coupler_travel": "travel_ok",
               "buffer_limit_state": "buffers_ok", "adhesion": "adhesion_ok",
-              "standstill_holding": "holding_ok"}
+              "standstill_holding": "holding_ok", "runaway": "runaway_ok"}
 
 
 def flags(verdicts: Verdicts) -> dict:

@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 
+from ..physics.brakes import adhesion
 from ..physics.constants import KMH_PER_MS
 from ..physics.equations import jit
 from ..physics.kernel import FULL_APPLICATION, MEAN_ADHESION_MIN_SPEED_M_S
@@ -35,6 +36,11 @@ class SampledDemand:
         n = limits.adhesion_limit.size
         self.demand = VehicleDemand.empty(n)
         self.first_at_speed_s = np.full(n, -1.0)
+        # the run check, as :class:`Watch` keeps it (see there)
+        self.first_rail_s = np.full(n, -1.0)
+        self._rail = (np.zeros(n), np.zeros(n), np.full(n, np.nan), np.full(n, -1.0),
+                      np.zeros(n))
+        self._rail_table = np.ascontiguousarray(limits.rail_table, float)
         self._work = np.zeros(n)
         self._dist = np.zeros(n)
         self._prev: tuple | None = None
@@ -55,6 +61,9 @@ class SampledDemand:
                        STANDSTILL_SAMPLE_M_S, ADHESION_AT_SPEED_LIMIT, d.at_speed,
                        d.at_speed_time_s, d.at_speed_kmh, self.first_at_speed_s, d.low_speed,
                        d.low_speed_time_s, d.low_speed_kmh)
+        ratio, tau, mu, when, kmh = self._rail
+        _rail_scan(np.full(v.size, float(t)), v, f, lim.weight_N, self._rail_table,
+                   STANDSTILL_SAMPLE_M_S, ratio, tau, mu, when, kmh, self.first_rail_s)
         fast = np.abs(v) >= MEAN_ADHESION_MIN_SPEED_M_S
         d.mean_end_time_s[fast] = t
         d.mean_end_speed_kmh[fast] = np.abs(v[fast]) * KMH_PER_MS
@@ -71,6 +80,10 @@ class SampledDemand:
                                    0.0)
             self._dist += np.where(on, dx, 0.0)
         self._prev = (x, v)
+
+    def rail_demand(self) -> tuple:
+        """The run check from the samples (as :meth:`Watch.rail_demand`)."""
+        return self._rail[1:]
 
     def result(self) -> VehicleDemand:
         """The records so far."""
@@ -115,6 +128,27 @@ def _scan(t0, v0, t1, v1, nc, peak_draft, t_draft, peak_buff, t_buff, draft_lim,
             if b > state_lim[j] and first_state[j] < 0.0:
                 first_state[j] = t_buff[j]
                 new += 1
+    return new
+
+
+@jit
+def _rail_scan(when, speed, force, weight, table, v_rest, ratio, tau, mu, t, kmh, first):
+    """The run check at one sample of each vehicle (its own time, speed [m/s] and brake force
+    [N]): its demand against the rail's available adhesion, records updated in place.
+    Returns the number of vehicles beyond the rail's adhesion for the first time."""
+    new = 0
+    for i in range(force.shape[0]):
+        v = abs(speed[i])
+        if v <= v_rest or weight[i] <= 0.0 or force[i] <= 0.0 or when[i] <= 0.0:
+            continue
+        m, _dm = adhesion.mu_of(table, v)
+        d = force[i] / weight[i]
+        r = d / m
+        if r > ratio[i]:
+            ratio[i], tau[i], mu[i], t[i], kmh[i] = r, d, m, when[i], v * KMH_PER_MS
+        if r > 1.0 and first[i] < 0.0:
+            first[i] = when[i]
+            new += 1
     return new
 
 
@@ -164,8 +198,9 @@ class Watch:
     def __init__(self, limits: TrainLimits, standstill_m_s: float = 1e-3):
         self.limits = limits
         nc, n = limits.draft_strength_N.size, limits.adhesion_limit.size
-        self.first_time_s = {name: np.full(nc if CRITERIA[name].element == "coupler" else n,
-                                           -1.0) for name in CRITERIA}
+        sizes = {"coupler": nc, "vehicle": n, "train": 1}
+        self.first_time_s = {name: np.full(sizes[CRITERIA[name].element], -1.0)
+                             for name in CRITERIA}
         self._reported = {name: np.zeros(a.size, bool) for name, a in self.first_time_s.items()}
         self.draft_speed_kmh = np.zeros(nc)
         self.buff_speed_kmh = np.zeros(nc)
@@ -174,12 +209,16 @@ class Watch:
         self.demand = VehicleDemand.empty(n)
         self.standstill_m_s = float(standstill_m_s)
         self._buffer_limit_N = np.ascontiguousarray(limits.of("buffer_limit_state"), float)
-        self._at_speed_force_N = ADHESION_AT_SPEED_LIMIT * limits.weight_N
+        # the run check: each vehicle's largest demand relative to the rail's adhesion, the
+        # demand and the rail's adhesion then, when (-1: never braked while moving) and at
+        # what speed
+        self._rail_ratio = np.zeros(n)
+        self._rail_tau, self._rail_mu = np.zeros(n), np.full(n, np.nan)
+        self._rail_t, self._rail_kmh = np.full(n, -1.0), np.zeros(n)
+        self._rail_table = np.ascontiguousarray(limits.rail_table, float)
         # when each vehicle's braked part ended (its speed fell below 5 km/h), and at what speed
         self._mean_end_t = np.zeros(n)
         self._mean_end_kmh = np.zeros(n)
-        # at rest after the stop: each vehicle's worst force to hold against what it holds
-        self._hold: tuple | None = None
         # each vehicle's wheel-temperature limit, and its speed when first beyond it
         self._wheel_limit_K = limits.of("wheel_temperature")
         self._wheel_kmh = np.full(n, np.nan)
@@ -193,8 +232,6 @@ class Watch:
                 v = {n: a.copy() for n, a in v.items()}
             elif isinstance(v, np.ndarray):
                 v = v.copy()
-            elif isinstance(v, tuple) and k == "_hold":
-                v = tuple(a.copy() for a in v)
             elif isinstance(v, VehicleDemand):
                 v = VehicleDemand(*(x.copy() if isinstance(x, np.ndarray) else x
                                     for x in v.__dict__.values()))
@@ -229,13 +266,18 @@ class Watch:
                     first["buffer_limit_state"])
         n = lim.weight_N.size
         if n == vehicle_speed_m_s.size:
-            # the kernel keeps each vehicle's brake-force peak above 30 km/h: first seen
-            # beyond the limit at the peak that the chunk's end shows
-            first_at = first["adhesion_at_speed"]
-            over = (kin.peak_brake_fast_N[:n] > self._at_speed_force_N) & (first_at < 0.0)
-            if over.any():
-                first_at[over] = kin.peak_brake_fast_time_s[:n][over]
-                new += int(over.sum())
+            # the demand against the rail at the chunk's end and at the kernel's peaks of the
+            # brake force above and below 30 km/h (each at its own speed and time)
+            w, first_rail = lim.weight_N, first["adhesion_demand"]
+            for when, speed, force in (
+                    (np.full(n, t1), vehicle_speed_m_s, brake_force_N),
+                    (kin.peak_brake_fast_time_s[:n], kin.peak_brake_fast_speed_m_s[:n],
+                     kin.peak_brake_fast_N[:n]),
+                    (kin.peak_brake_slow_time_s[:n], kin.peak_brake_slow_speed_m_s[:n],
+                     kin.peak_brake_slow_N[:n])):
+                new += _rail_scan(when, speed, force, w, self._rail_table, self.standstill_m_s,
+                                  self._rail_ratio, self._rail_tau, self._rail_mu,
+                                  self._rail_t, self._rail_kmh, first_rail)
             # the end of each vehicle's braked part: the last chunk end it ran at 5 km/h+
             fast = np.abs(vehicle_speed_m_s) >= MEAN_ADHESION_MIN_SPEED_M_S
             if fast.any():
@@ -254,31 +296,11 @@ class Watch:
                     new += int(hot.sum())
         return self._events(kin) if new else []
 
-    def at_rest(self, t: float, need_N, capacity_N) -> list[tuple]:
-        """Take the train at rest into account: each vehicle's force to hold [N] (couplers,
-        grade, other external forces) against what it holds [N], at time ``t`` [s].
-
-        Returns
-        -------
-        list of (time_s, detail)
-            Vehicles first seen needing more than they hold.
-        """
-        need = np.abs(np.asarray(need_N, float))
-        cap = np.asarray(capacity_N, float)
-        if self._hold is None:
-            self._hold = (need.copy(), cap.copy(), np.full(need.size, float(t)))
-        h_need, h_cap, h_t = self._hold
-        worse = need * h_cap > h_need * cap  # need / cap grew (cap > 0 for any vehicle)
-        h_need[worse], h_cap[worse], h_t[worse] = need[worse], cap[worse], t
-        first = self.first_time_s["standstill_holding"]
-        new = (need > cap) & (first < 0.0)
-        out = []
-        for i in np.flatnonzero(new):
-            first[i] = t
-            out.append((float(t), {"criterion": "standstill_holding", "vehicle": int(i),
-                                   "force_kN": float(need[i]) / 1e3,
-                                   "limit_kN": float(cap[i]) / 1e3, "speed_kmh": 0.0}))
-        return out
+    def rail_demand(self) -> tuple:
+        """Each vehicle's largest adhesion demand relative to the rail's available adhesion:
+        (demand [-], the rail's adhesion then [-], when [s], -1: never braked while moving,
+        at what speed [km/h])."""
+        return self._rail_tau, self._rail_mu, self._rail_t, self._rail_kmh
 
     def start(self, speed_m_s: float) -> None:
         """The brake command came, with the head at ``speed_m_s`` [m/s]."""
@@ -289,22 +311,22 @@ class Watch:
         """The limits first exceeded since the last call, as (time_s, detail)."""
         out = []
         nc = self._draft_seen.size
-        d = self.demand_of(kin)
-        n = d.at_speed.size
+        n = self._rail_tau.size
         values = {"draft_strength": kin.peak_draft_N[:nc], "buff_strength": -kin.peak_buff_N[:nc],
                   "endurable_lcf": -kin.peak_buff_N[:nc],
-                  "buffer_limit_state": -kin.peak_buff_N[:nc], "adhesion_at_speed": d.at_speed,
+                  "buffer_limit_state": -kin.peak_buff_N[:nc], "adhesion_demand": self._rail_tau,
                   "wheel_temperature": kin.peak_wheel_temperature_K[:n]}
         speeds = {"draft_strength": self.draft_speed_kmh, "buff_strength": self.buff_speed_kmh,
                   "endurable_lcf": self.buff_speed_kmh,
-                  "buffer_limit_state": self.buff_speed_kmh, "adhesion_at_speed": d.at_speed_kmh,
+                  "buffer_limit_state": self.buff_speed_kmh, "adhesion_demand": self._rail_kmh,
                   "wheel_temperature": self._wheel_kmh}
         for name in values:
             first, done = self.first_time_s[name], self._reported[name]
+            limit = self._rail_mu if name == "adhesion_demand" else self.limits.of(name)
             for j in np.flatnonzero((first >= 0.0) & ~done):
                 done[j] = True
                 out.append((float(first[j]), self.event_detail(
-                    name, int(j), float(values[name][j]), float(self.limits.of(name)[j]),
+                    name, int(j), float(values[name][j]), float(limit[j]),
                     float(speeds[name][j]))))
         return out
 
@@ -320,6 +342,9 @@ class Watch:
         if rule.unit == "K":
             return {"criterion": name, rule.element: number, "temperature_K": value,
                     "limit_K": limit, "speed_kmh": speed_kmh}
+        if rule.unit == "km/h":  # a speed from rest: the value is the speed
+            return {"criterion": name, rule.element: number, "speed_kmh": value,
+                    "limit_kmh": limit}
         return {"criterion": name, rule.element: number, "demand": value, "limit": limit,
                 "speed_kmh": speed_kmh}
 
@@ -341,8 +366,8 @@ class Watch:
                              kin.peak_brake_slow_time_s[:n].copy(),
                              kin.peak_brake_slow_speed_m_s[:n] * KMH_PER_MS)
 
-    def verdicts(self, kin, limits: TrainLimits | None = None,
-                 wheel_temperature=None) -> Verdicts:
+    def verdicts(self, kin, limits: TrainLimits | None = None, wheel_temperature=None,
+                 holding=None, runaway=None) -> Verdicts:
         """The verdicts table so far.
 
         Parameters
@@ -356,6 +381,9 @@ class Watch:
         wheel_temperature : tuple of ndarray, optional
             Each vehicle's peak wheel temperature [K] and when [s] (default: the kernel's
             peaks at its updates).
+        holding, runaway : tuple of ndarray, optional
+            The standstill's records (:func:`~ltd_brake_ros.verdicts.judge`; omitted: not
+            assessed).
 
         Returns
         -------
@@ -377,8 +405,9 @@ class Watch:
                      buff_speed_kmh=self.buff_speed_kmh,
                      demand=self.demand_of(kin) if lim.adhesion_limit.size else None,
                      travel_beyond_mm=beyond, travel_time_s=np.maximum(t_beyond, 0.0),
-                     travel_speed_kmh=np.full(nc, math.nan), holding=self._hold,
-                     wheel_temperature=wheel_temperature,
+                     travel_speed_kmh=np.full(nc, math.nan), holding=holding,
+                     runaway=runaway, wheel_temperature=wheel_temperature,
+                     rail_demand=self.rail_demand() if not other else None,
                      first_time_s=None if other else dict(
                          self.first_time_s, coupler_travel=np.asarray(
                              kin.out_of_range_time_s[:nc], float)))

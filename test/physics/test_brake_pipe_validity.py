@@ -33,8 +33,9 @@ def test_the_range_is_the_longest_run_of_pipe_from_a_drivers_brake_valve():
     both_ends = _train(132, tail_loco=True)
     assert brakes.validity(both_ends, pipe) != []
     assert brakes.validity(both_ends, dataclasses.replace(pipe, distributed_power=True)) == []
-    # the paper's empirical brake has no pipe, so no such range
-    assert brakes.validity(outside, load_brake_params()) == []
+    # the paper's empirical brake has a range of its own: trains up to 500 m
+    warning, = brakes.validity(outside, load_brake_params())
+    assert "empirical brake model outside its validated range" in warning and "500 m" in warning
 
 
 def test_every_output_of_a_run_outside_the_range_says_so(tmp_path, capsys):
@@ -46,9 +47,13 @@ def test_every_output_of_a_run_outside_the_range_says_so(tmp_path, capsys):
     text = capsys.readouterr().out
     assert sum("outside its validated range" in line and line.startswith("warning")
                for line in text.splitlines()) == 1
+    # beyond both brake models' ranges: the output says that none covers the train
+    assert sum("no brake model covers this train" in line and line.startswith("warning")
+               for line in text.splitlines()) == 1
     assert main(base + ["--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert len(out["warnings"]) == 1 and "1500 m" in out["warnings"][0]
+    assert len(out["warnings"]) == 2 and "1500 m" in out["warnings"][0]
+    assert "no brake model covers" in out["warnings"][1]
     assert main(base + ["--record", str(tmp_path / "rec")]) == 0
     capsys.readouterr()
     assert main(["report", str(tmp_path / "rec"), "--json"]) == 0

@@ -8,9 +8,13 @@ fine fixed-step solution (1 ms steps: their own error is 0.2 % of the peaks agai
 import numpy as np
 import pytest
 
-from ltd_brake_ros.inputs import InputError, consist_from_mapping, get_scenario
+from ltd_brake_ros.inputs import InputError, consist_from_mapping, get_scenario, load_brake_params
 from ltd_brake_ros.physics.kernel import DEFAULT_TOLERANCE_M_S
 from ltd_brake_ros.simulator import Commands, Simulator
+
+#: The paper's empirical brake: the integrator's accuracy is judged on it, beyond its range of
+#: train lengths too (a default run of these trains takes the brake pipe)
+EMPIRICAL = load_brake_params("brake_params/paper.yaml")
 
 
 
@@ -40,9 +44,9 @@ def peak_error_percent(sim, ref):
 
 @pytest.fixture(scope="module")
 def snatches():
-    fine = run(Simulator(long_train(), 100.0, step_s=0.001, tolerance_m_s=0.0))
-    fixed = run(Simulator(long_train(), 100.0, tolerance_m_s=0.0))
-    controlled = run(Simulator(long_train(), 100.0))
+    fine = run(Simulator(long_train(), 100.0, EMPIRICAL, step_s=0.001, tolerance_m_s=0.0))
+    fixed = run(Simulator(long_train(), 100.0, EMPIRICAL, tolerance_m_s=0.0))
+    controlled = run(Simulator(long_train(), 100.0, EMPIRICAL))
     return fine, fixed, controlled
 
 
@@ -65,8 +69,8 @@ def test_error_control_resolves_the_snatches(snatches):
 
 
 def test_chunk_boundaries_are_hit_exactly():
-    sim = Simulator(long_train(40), 100.0)
-    ref = Simulator(long_train(40), 100.0, tolerance_m_s=0.0)
+    sim = Simulator(long_train(40), 100.0, EMPIRICAL)
+    ref = Simulator(long_train(40), 100.0, EMPIRICAL, tolerance_m_s=0.0)
     sim.advance(0.37, Commands(emergency=True))
     ref.advance(0.37, Commands(emergency=True))
     for _ in range(60):
@@ -79,8 +83,8 @@ def test_chunk_boundaries_are_hit_exactly():
 def test_grouping_of_nominal_steps_does_not_change_the_result():
     # sub-steps and their proposals carry over between calls: 1 s and 20 ms chunks of the
     # same 10 ms nominal steps agree bit for bit, through the snatches
-    one = Simulator(long_train(150), 100.0)
-    many = Simulator(long_train(150), 100.0)
+    one = Simulator(long_train(150), 100.0, EMPIRICAL)
+    many = Simulator(long_train(150), 100.0, EMPIRICAL)
     one.advance(40.0, Commands(emergency=True))  # the run-out snatch comes at about 43 s
     many.advance(40.0, Commands(emergency=True))
     one.advance(4.0)

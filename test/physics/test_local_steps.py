@@ -13,9 +13,13 @@ import math
 import numpy as np
 import pytest
 
-from ltd_brake_ros.inputs import consist_from_mapping, get_scenario
+from ltd_brake_ros.inputs import consist_from_mapping, get_scenario, load_brake_params
 from ltd_brake_ros.physics import kernel, local_steps
 from ltd_brake_ros.simulator import Commands, Simulator
+
+#: The paper's empirical brake: the integrator's accuracy is judged on it, beyond its range of
+#: train lengths too (a default run of these trains takes the brake pipe)
+EMPIRICAL = load_brake_params("brake_params/paper.yaml")
 
 
 def long_train(wagons):
@@ -45,9 +49,9 @@ def peak_errors_percent(sim, ref):
 def stops():
     """150 wagons: 1 ms fixed steps (their own error is 0.2 % of the peaks against 0.5 ms),
     and the default tolerance with and without local time stepping."""
-    fine = run(Simulator(long_train(150), 100.0, step_s=0.001, tolerance_m_s=0.0))
-    local = run(Simulator(long_train(150), 100.0))
-    whole = run(Simulator(long_train(150), 100.0, local_steps=False))
+    fine = run(Simulator(long_train(150), 100.0, EMPIRICAL, step_s=0.001, tolerance_m_s=0.0))
+    local = run(Simulator(long_train(150), 100.0, EMPIRICAL))
+    whole = run(Simulator(long_train(150), 100.0, EMPIRICAL, local_steps=False))
     return fine, local, whole
 
 

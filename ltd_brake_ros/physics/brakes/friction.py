@@ -201,50 +201,6 @@ def force_scales(kind, blocks, arrangement, mu_disc, block_force_N, out):
                                  block_force_N[i])
 
 
-#: Wheel-rail adhesion a braked vehicle at rest can use to hold against longitudinal forces
-#: [-]: 0.30, dry rail, between Curtius-Kniffler's 0.33 at rest and Koffman's dry ~0.25
-#: (both secondary sources); the clamped brake's static friction is taken to hold the wheel
-#: up to it at full application (an assumption).
-STANDSTILL_ADHESION = 0.30
-
-
-@jit_inline
-def standstill_capacity(block_force_N, full_block_force_N, mass_kg):
-    """Longitudinal force a vehicle at rest holds with its brake applied [N].
-
-    A braked wheelset at rest does not slide until the force on it exceeds the adhesion the
-    rail offers, :data:`STANDSTILL_ADHESION` m g, at full application, in proportion to the
-    block force below it (a released brake holds nothing; the kinetic friction at rest and the
-    running resistance still act beside it).
-
-    Parameters
-    ----------
-    block_force_N : float
-        The vehicle's block force now, F_B,tot [N].
-    full_block_force_N : float
-        Its full block force (:attr:`FrictionArrays.force_max_N`) [N].
-    mass_kg : float
-        Its weight on the rails [kg].
-
-    Returns
-    -------
-    float
-    """
-    if full_block_force_N <= 0.0 or block_force_N <= 0.0:
-        return 0.0
-    share = block_force_N / full_block_force_N
-    if share > 1.0:
-        share = 1.0
-    return STANDSTILL_ADHESION * G * mass_kg * share
-
-
-@jit_vector
-def standstill_capacities(block_force_N, full_block_force_N, mass_kg, out):
-    """:func:`standstill_capacity` of every vehicle (into ``out``) [N]."""
-    for i in range(block_force_N.shape[0]):
-        out[i] = standstill_capacity(block_force_N[i], full_block_force_N[i], mass_kg[i])
-
-
 @jit_inline
 def retarding_force(kind, speed_m_s, scale):
     """Retarding force of one vehicle [N] and its derivative [N/(m/s)] at a speed magnitude.
