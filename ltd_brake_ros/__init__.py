@@ -29,6 +29,7 @@ _EXPORTS = {
     "emergency_stop": "api", "run_commands": "api", "RunResult": "api", "TimeSeries": "api",
     "Simulator": "simulator", "Commands": "simulator", "Snapshot": "simulator",
     "SimulationError": "simulator", "StopResult": "studies.runs", "Verdicts": "verdicts",
+    "StopRecord": "stops",
     # recordings
     "read_recording": "api", "Recording": "api",
     # campaigns
@@ -56,5 +57,6 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
                       read_campaign, read_recording, run_campaign, run_commands)
     from .inputs import BrakeParams, CommandScript, Consist, CouplerLUT, InputError, Track
     from .simulator import Commands, SimulationError, Simulator, Snapshot
+    from .stops import StopRecord
     from .studies.runs import StopResult
     from .verdicts import Verdicts

@@ -373,12 +373,17 @@ class RunResult:
     timeseries : TimeSeries
     simulator : Simulator
         The simulator at the end of the run (for further queries or to go on).
+    stops : tuple of StopRecord
+        Every stop of the run, each its own record: brake command time and speed, stopping
+        distance and time, settled time, peak forces with their couplers, and its verdicts
+        (:class:`~ltd_brake_ros.stops.StopRecord`).
     """
 
     summary: StopResult | None
     verdicts: Verdicts
     timeseries: TimeSeries
     simulator: Simulator
+    stops: tuple = ()
 
     def to_dataframe(self, element: str | None = "vehicle"):
         """:meth:`TimeSeries.to_dataframe` of the run."""
@@ -452,7 +457,8 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
                         tolerance_m_s=tolerance_m_s, chunk_s=sample_s, max_time_s=max_time_s,
                         on_chunk=sampler)
     summary = summarize(sim, time.perf_counter() - start)
-    return RunResult(summary, sim.verdicts(), sampler.series(sim, _attrs(sim, speed_kmh)), sim)
+    return RunResult(summary, sim.verdicts(), sampler.series(sim, _attrs(sim, speed_kmh)), sim,
+                     sim.stops)
 
 
 def run_commands(consist: Consist, speed_kmh: float, commands, *,
@@ -489,7 +495,8 @@ def run_commands(consist: Consist, speed_kmh: float, commands, *,
                        on_chunk=sampler)
     wall = time.perf_counter() - start
     summary = summarize(sim, wall) if sim.stopping_distance_m is not None else None
-    return RunResult(summary, sim.verdicts(), sampler.series(sim, _attrs(sim, speed_kmh)), sim)
+    return RunResult(summary, sim.verdicts(), sampler.series(sim, _attrs(sim, speed_kmh)), sim,
+                     sim.stops)
 
 
 # --------------------------------------------------------------------------- recordings

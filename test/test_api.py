@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import ltd_brake_ros as api
+from ltd_brake_ros.physics.kernel import SETTLE_S
 from ltd_brake_ros.inputs import InputError, get_scenario
 from ltd_brake_ros.studies.runs import emergency_stop as summary_only
 
@@ -66,7 +67,12 @@ def test_emergency_stop_is_the_stop_of_the_library_with_its_time_series(run6):
     assert ts.vehicles["speed_m_s"].shape == (k, n) and ts.couplers["coupler_force_N"].shape \
         == (k, n - 1)
     np.testing.assert_allclose(np.diff(ts.time_s), 0.1, atol=1e-9)  # a sample every 0.1 s
-    assert ts.time_s[-1] == pytest.approx(run6.summary.stop_time_s, abs=0.1 + 1e-9)
+    # the samples run on until the train has settled (2 s at rest after its recoil)
+    assert ts.time_s[-1] == pytest.approx(run6.summary.settled_time_s + SETTLE_S,
+                                          abs=0.1 + 1e-9)
+    stop, = run6.stops
+    assert stop.stopping_distance_m == run6.summary.stopping_distance_m
+    assert stop.peaks.draft_N == run6.summary.peak_draft_kN * 1e3
     # the samples lie within the run's peaks, and the head's travel is the stopping distance
     f = ts.couplers["coupler_force_N"]
     assert f.max() <= run6.summary.peak_draft_kN * 1e3 + 1e-6
@@ -123,7 +129,7 @@ def test_simulate_writes_the_time_series_and_refuses_to_overwrite(tmp_path, caps
     lines = out.read_text().splitlines()
     k = (len(lines) - 1) // (5 * 11 + 10)
     assert (len(lines) - 1) == k * (5 * 11 + 10)
-    assert k * 0.1 == pytest.approx(summary["stop_time_s"], abs=0.1 + 1e-9)
+    assert k * 0.1 == pytest.approx(summary["settled_time_s"] + SETTLE_S, abs=0.1 + 1e-9)
     assert main(["simulate", "--scenario", "1", "--timeseries", str(out)]) == 2
     assert "exists" in capsys.readouterr().err
 

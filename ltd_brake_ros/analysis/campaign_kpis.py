@@ -4,8 +4,6 @@ Shared by the report (:mod:`.campaign_report`) and the sensitivity analysis (:mo
 """
 from __future__ import annotations
 
-from ..verdicts import MEAN_ADHESION_MIN_INITIAL_KMH
-
 __all__ = ["KPIS", "NO_VALUE"]
 
 #: KPI columns summarised: column -> (label, worse direction); +1: a larger value is worse,
@@ -14,14 +12,13 @@ __all__ = ["KPIS", "NO_VALUE"]
 KPIS = {
     "peak_draft_kN": ("peak draft force", +1),
     "peak_buff_kN": ("peak buff force (negative)", -1),
-    "mean_adhesion": (f"largest mean utilised adhesion (stops from "
-                      f"{MEAN_ADHESION_MIN_INITIAL_KMH:.0f} km/h)", +1),
-    "max_adhesion_demand": ("largest adhesion demand above 30 km/h", +1),
+    "mean_adhesion": ("largest mean utilised adhesion by design (each vehicle's stop from its "
+                      "maximum speed)", +1),
+    "max_adhesion_demand": ("largest adhesion demand against the rail", +1),
     "stopping_distance_m": ("stopping distance", +1),
 }
 #: Why a successful run has no value of a KPI (other KPIs: "no value").
 NO_VALUE = {
     "stopping_distance_m": "did not stop",
-    "mean_adhesion": f"not assessed (no stop from {MEAN_ADHESION_MIN_INITIAL_KMH:.0f} km/h or "
-                     "more)",
+    "mean_adhesion": "not assessed (no braked vehicle)",
 }

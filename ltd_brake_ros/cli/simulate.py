@@ -206,6 +206,7 @@ def run(args: argparse.Namespace) -> int:
         out["limits_exceeded"] = _limit_events(events)
         out["verdicts"] = verdicts.as_dict()
         out["non_physical"] = verdicts.non_physical
+        out["stops"] = [s.as_dict() for s in sim.stops]
         out["startup_s"] = startup_s
         out["plain_python_s"] = sim.plain_python_s
         out["served_by"] = _served_by()
@@ -223,11 +224,13 @@ def run(args: argparse.Namespace) -> int:
           f"{sim.command_speed_kmh:.2f} km/h; brake pipe vented at vehicle "
           f"{spec.consist.venting_vehicle}")
     print(f"stopping         {res.stopping_distance_m:.1f} m (the head's travel), every vehicle "
-          f"at rest {res.stop_time_s:.2f} s after the brake command")
+          f"at rest {res.stop_time_s:.2f} s after the brake command; "
+          + ("not settled" if res.settled_time_s is None else
+             f"settled from t = {res.settled_time_s:.2f} s (couplers' recoil over)"))
     print(f"peak draft       {res.peak_draft_kN:.1f} kN at coupler {res.peak_draft_coupler} "
-          f"(t = {res.peak_draft_time_s:.2f} s)")
+          f"(t = {res.peak_draft_time_s:.2f} s; command to standstill)")
     print(f"peak buff        {res.peak_buff_kN:.1f} kN at coupler {res.peak_buff_coupler} "
-          f"(t = {res.peak_buff_time_s:.2f} s)")
+          f"(t = {res.peak_buff_time_s:.2f} s; command to standstill)")
     if res.out_of_range.count:
         print(f"warning          {res.out_of_range.describe()}")
     for line in model_warnings(sim):
@@ -315,6 +318,7 @@ def _run_script(args: argparse.Namespace, spec) -> int:
         "wall_time_s": wall, "real_time_factor": sim.time_s / wall if wall > 0 else None,
         "plain_python_s": sim.plain_python_s,
         "verdicts": sim.verdicts().as_dict(),
+        "stops": [s.as_dict() for s in sim.stops],
         "adhesion": sim.adhesion.name, "wheel_slides": sim.wheel_slides(),
         "warnings": model_warnings(sim),
         **sim.brake_temperatures().as_dict(),
@@ -326,10 +330,8 @@ def _run_script(args: argparse.Namespace, spec) -> int:
           f"script {script.source}")
     print(f"ran              {sim.time_s:.1f} s, {out['distance_travelled_m']:.1f} m, final "
           f"speed {out['final_speed_kmh']:.1f} km/h")
-    if sim.command_time_s is not None:
-        print(f"brake command    t = {sim.command_time_s:.2f} s, {sim.command_speed_kmh:.2f} km/h"
-              + ("" if sim.stopping_distance_m is None else
-                 f"; stopped {sim.stopping_distance_m:.1f} m further"))
+    for stop in sim.stops:
+        print(f"stop             {stop.describe()}")
     for e in events:
         if e.kind not in ("coupler_out_of_lut", "limit_exceeded"):
             print(f"event            {e.describe()}")
@@ -377,7 +379,7 @@ def _print_verdicts(verdicts) -> None:
     """The verdicts table, one line per criterion and per coupler or vehicle beyond a limit."""
     lines = verdicts.describe()
     print(f"verdicts         {verdicts.status}"
-          + ("  (NON-PHYSICAL: couplers beyond their travel)" if verdicts.non_physical else ""))
+          + ("  (NON-PHYSICAL: see the last line)" if verdicts.non_physical else ""))
     for line in lines:
         print(f"  {line}")
 

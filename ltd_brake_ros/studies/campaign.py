@@ -375,8 +375,6 @@ KPI_FIELDS = (
     ("couplers_beyond_lut", pa.int32()),
 )
 
-_MEAN_FROM_KMH = verdicts_module.MEAN_ADHESION_MIN_INITIAL_KMH
-_AT_SPEED_KMH = verdicts_module.ADHESION_SPEED_KMH
 #: Column -> (unit, description) of every column but the uncertain parameters (theirs come
 #: from :func:`~ltd_brake_ros.inputs.campaign.fittable_parameters`). Units: SI or the one in
 #: the name, ``-`` for a dimensionless number, empty for text, ids and flags.
@@ -423,13 +421,13 @@ COLUMNS = {
                               "head vehicle."),
     "peak_buff_time_s": ("s", "When the largest buff force occurred, from the start of the "
                               "manoeuvre."),
-    "mean_adhesion": ("-", "Largest mean utilised adhesion of a braked vehicle (brake force at "
-                           "the rails over weight); null unless the stop started at "
-                           f"{_MEAN_FROM_KMH:.0f} km/h or more."),
+    "mean_adhesion": ("-", "Largest mean utilised adhesion of a braked vehicle by design (brake "
+                           "force at the rails over weight, its own stop from its maximum "
+                           "speed, the mean-value method); null when no vehicle is braked."),
     "mean_adhesion_vehicle": ("", "Vehicle of the largest mean utilised adhesion, counted from "
                                   "1 at the head; 0 when it was not assessed."),
-    "max_adhesion_demand": ("-", "Largest instantaneous adhesion demand (brake force over "
-                                 f"weight) of a braked vehicle above {_AT_SPEED_KMH:.0f} km/h."),
+    "max_adhesion_demand": ("-", "Largest adhesion demand (brake force over weight) of a braked "
+                                 "vehicle at its worst against the rail's available adhesion."),
     "max_adhesion_vehicle": ("", "Vehicle of the largest adhesion demand, counted from 1 at "
                                  "the head."),
     "draft_ok": ("", "True when no coupler's draft force exceeded the coupler variant's draft "
@@ -602,14 +600,14 @@ def _simulate(c: Campaign, m, consist, speed_kmh: float, params, lut) -> dict:
     verdicts = sim.verdicts(verdicts_module.train_limits(
         consist, lut, adhesion_limit=c.adhesion_limit, friction_arrays=sim.model.friction,
         coupler_arrays=sim.model.couplers))
-    # the largest mean utilised adhesion of a vehicle (null: no stop in the criterion's scope)
-    # and the largest instantaneous demand above 30 km/h; vehicles counted from 1 at the head
+    # the largest mean utilised adhesion of a vehicle by design (its own stop from its
+    # maximum speed) and the run's largest demand against the rail; vehicles counted from 1
     mean = verdicts["adhesion"]
     out["mean_adhesion"] = mean.worst_value if mean.assessed else None
     out["mean_adhesion_vehicle"] = mean.worst_number + 1 if mean.assessed else 0
-    at_speed = verdicts["adhesion_at_speed"]
-    out["max_adhesion_demand"] = at_speed.worst_value
-    out["max_adhesion_vehicle"] = at_speed.worst_number + 1
+    demand = verdicts["adhesion_demand"]
+    out["max_adhesion_demand"] = demand.worst_value
+    out["max_adhesion_vehicle"] = demand.worst_number + 1
     flags = verdicts_module.flags(verdicts)
     for name in ("draft_ok", "buff_ok", "travel_ok", "adhesion_ok"):
         out[name] = flags[name]

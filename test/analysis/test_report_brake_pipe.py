@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ltd_brake_ros.physics.kernel import SETTLE_S
 from ltd_brake_ros.analysis.export import write_csv
 from ltd_brake_ros.analysis.plots import write_plots
 from ltd_brake_ros.analysis.report import (FILLED, PIPE_ONSET_PA, PIPE_PROFILE_OFFSETS_S,
@@ -33,13 +34,13 @@ def pipe_run(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def fine():
-    """The same stop advanced in 10 ms chunks, and a recording chunk beyond it (the recording
-    ends at a chunk's end): pressures of every vehicle in time."""
+    """The same stop advanced in 10 ms chunks, to the train settled and a recording chunk
+    beyond (the recording ends at a chunk's end): pressures of every vehicle in time."""
     sim = Simulator(load_consist(CONSIST), SPEED_KMH, load_brake_params(PIPE_PARAMS))
     snaps = [sim.snapshot()]
     commands = Commands(emergency=True)
-    while (sim.stop_time_s is None or sim.time_s < sim.stop_time_s + RECORD_CHUNK_S) \
-            and sim.time_s < 60.0:
+    while (sim.settled_time_s is None or sim.time_s < sim.settled_time_s + SETTLE_S
+           + RECORD_CHUNK_S) and sim.time_s < 90.0:
         snaps.append(sim.advance(0.01, commands))
         commands = None
     t = np.array([s.time_s for s in snaps])
