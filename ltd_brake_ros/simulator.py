@@ -8,9 +8,9 @@ Contract
    starts at that speed with unloaded couplers. The models are compiled once into
    :attr:`Simulator.model`.
 2. :meth:`Simulator.advance` integrates one chunk of simulated time under the given
-   :class:`Commands` and returns a :class:`Snapshot`. Chunks of any length give the same result
-   as one long call, within the integrator tolerance (exactly the same when both are multiples
-   of the step).
+   :class:`Commands` and returns a :class:`Snapshot`. A chunk is a whole number of steps
+   (:func:`whole_steps` refuses others), and chunks give the same result as one long call, to
+   the last bit.
 3. A step whose Newton iteration does not converge, that meets a force that is not finite, or
    that fails with an arithmetic error raises :class:`SimulationError` with one line; the
    simulator then refuses to advance until :meth:`reset`.
@@ -108,6 +108,40 @@ def kernels_cached(brake_model: str | None = None, local_steps: bool = False) ->
 #: Seconds the first run of a train compiles its kernels, on an idle 2-core machine
 #: (``benchmarks/bench_startup.py``).
 COMPILE_S = 15
+
+
+def whole_steps(duration_s: float, step_s: float, name: str = "duration_s") -> int:
+    """The number of integration steps in a chunk, which must be whole.
+
+    A chunk that is not a whole number of steps is integrated in shorter steps, and its
+    results then differ from one long call (by centimetres of distance and tenths of a kN):
+    the simulator refuses it instead.
+
+    Parameters
+    ----------
+    duration_s : float
+        The chunk [s].
+    step_s : float
+        The nominal integration step [s].
+    name : str, optional
+        What the chunk is called where it comes from, for the message.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    InputError
+        One line naming ``name`` (a ``ValueError``), when the chunk is not a whole number of
+        steps (to a relative 1e-6).
+    """
+    k = round(duration_s / step_s)
+    if k < 1 or abs(duration_s - k * step_s) > 1e-6 * step_s:
+        raise InputError(name, "", f"{duration_s:g} s is not a whole number of integration "
+                         f"steps of {step_s:g} s: chunks of other lengths change the results; "
+                         "give a multiple of the step")
+    return k
 
 
 def compile_notice(consist: Consist | None = None, params: BrakeParams | None = None,
@@ -842,7 +876,7 @@ class Simulator:
         Parameters
         ----------
         duration_s : float
-            Simulated time to advance [s] (> 0).
+            Simulated time to advance [s]: a whole number of steps (:func:`whole_steps`).
         commands : Commands, optional
             Inputs for this chunk; ``None`` keeps the previous ones.
 
@@ -853,6 +887,8 @@ class Simulator:
 
         Raises
         ------
+        ValueError
+            ``duration_s`` is not a positive whole number of steps (one line).
         SimulationError
             A step did not converge, met a force that is not finite, or failed with an
             arithmetic error (one line; the simulator then needs :meth:`reset`).
@@ -866,7 +902,7 @@ class Simulator:
         t0, v0 = st.time_s, float(st.kinematics.v_m_s[0])
         if commands is not None:
             self._apply_commands(commands, events)
-        nsteps = max(1, math.ceil(duration_s / self.step_s - 1e-9))
+        nsteps = whole_steps(duration_s, self.step_s)
         h = duration_s / nsteps
         remaining = nsteps
         inputs = self._inputs

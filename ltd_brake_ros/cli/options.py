@@ -28,16 +28,44 @@ def add_model_options(p: argparse.ArgumentParser) -> None:
     p : argparse.ArgumentParser
     """
     p.add_argument("--params", metavar="FILE",
-                   help="brake-parameter YAML (t_app_s, v_air_m_s, t_fill_s, k0, k_loco, "
-                        "mu_eff); default: config/brake_params/paper.yaml (Table 3)")
+                   help="brake-parameter YAML (model: and its fields, e.g. t_app_s, v_air_m_s, "
+                        "t_fill_s, k0); default for a run: the paper's empirical model "
+                        "(brake_params/paper.yaml, Table 3) for trains up to 500 m, the UIC "
+                        "brake pipe (brake_params/uic_brake_pipe.yaml) beyond; validate and "
+                        "calibrate: paper.yaml")
     p.add_argument("--lut", metavar="FILE",
                    help="coupler LUT YAML (deflection_mm, loading_kN, unloading_kN); default: "
                         "the reconstructed buffer-hook table config/couplers/buffer_hook_pugi.yaml")
     p.add_argument("--v-th-mm-s", type=float, metavar="MM_S",
                    help="Eq. 3 threshold speed between loading and unloading curves [mm/s] "
                         "(default: the LUT file's, 0.1)")
-    p.add_argument("--step-s", type=float, default=0.01, metavar="S",
-                   help="integration step [s] (default 0.01)")
+    p.add_argument("--step-s", type=_step, default=0.01, metavar="S",
+                   help="nominal integration step [s], a whole fraction of the 0.1 s chunks "
+                        "the runs advance in (e.g. 0.005, 0.01, 0.02, 0.025, 0.05; default "
+                        "0.01)")
+
+
+#: The shortest chunk a command-line run advances in [s] (recorded and sampled runs); the
+#: others are whole multiples of it.
+SHORTEST_CHUNK_S = 0.1
+
+
+def _step(text: str) -> float:
+    """``--step-s``: a number of seconds that divides :data:`SHORTEST_CHUNK_S` into whole
+    steps (argparse names the option in its error)."""
+    try:
+        step = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not (1e-5 <= step <= 0.1):
+        raise argparse.ArgumentTypeError(f"{text} s: a step must be between 1e-05 and 0.1 s")
+    k = round(SHORTEST_CHUNK_S / step)
+    if abs(SHORTEST_CHUNK_S - k * step) > 1e-6 * step:
+        raise argparse.ArgumentTypeError(
+            f"{text} s does not divide the {SHORTEST_CHUNK_S:g} s chunks the runs advance in "
+            "into whole steps (others would change the results): e.g. 0.005, 0.01, 0.02, "
+            "0.025 or 0.05")
+    return step
 
 
 def add_run_spec_options(p: argparse.ArgumentParser) -> None:

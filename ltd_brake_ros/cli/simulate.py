@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import argparse
 
-from .options import CONVENTIONS, add_run_spec_options, json_by_key, run_spec
+from .options import (CONVENTIONS, SHORTEST_CHUNK_S, add_run_spec_options, json_by_key,
+                      run_spec)
 
 
 def model_warnings(sim) -> list[str]:
@@ -158,7 +159,7 @@ def _on_chunk(rec, sampler, events: list):
 CHUNK_S, MAX_TIME_S = 1.0, 600.0
 #: Simulated time between recorded states with ``--record`` [s]: the command-update interval
 #: of a script run, so a recorded script run is the run without the recording.
-RECORD_CHUNK_S = 0.1
+RECORD_CHUNK_S = SHORTEST_CHUNK_S
 
 
 def run(args: argparse.Namespace) -> int:

@@ -890,6 +890,10 @@ def campaign_from_mapping(data: Any, source: str, digest: str = "",
                             f"{fit.field}")
         uncertainties[str(key)] = dist
     step = f.number("step_s", 0.01, lo=1e-4, hi=0.1)
+    if abs(0.5 - round(0.5 / step) * step) > 1e-6 * step:  # the runs' chunks: 0.5 s and 1 s
+        raise f.error("step_s", f"{step:g} s does not divide the 0.5 s chunks the runs advance "
+                      "in into whole steps (others would change the results): e.g. 0.005, "
+                      "0.01, 0.02, 0.025 or 0.05")
     manoeuvres = _manoeuvres(f)
     design = _design(f, runs, {"families": families, "couplers": coupler_variants,
                                "brake_params": brake_variants, "uncertainties": uncertainties,

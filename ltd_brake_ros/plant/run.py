@@ -12,7 +12,7 @@ from ..physics.kernel import DEFAULT_TOLERANCE_M_S
 from ..recording.metadata import model_warnings, run_metadata
 from ..recording.plant_topics import extra_topic
 from ..run_spec import RunSpec, RunSpecError, resolve_run_spec
-from ..simulator import SimulationError, Simulator
+from ..simulator import SimulationError, Simulator, whole_steps
 from .settings import PlantSettings, StartupError
 
 __all__ = ["RUN_INPUT_PARAMETERS", "RUN_SPEC_PARAMETERS", "PlantRun", "reset_run",
@@ -111,6 +111,10 @@ def build_simulator(spec: RunSpec, chunk_s: float,
         name = {"speed_kmh": "initial_speed_kmh", "tolerance_m_s": "tolerance_m_s"}.get(
             str(exc.source), "consist")
         raise StartupError(name, str(exc)) from None
+    try:
+        whole_steps(chunk_s, sim.step_s, "chunk_s")
+    except ValueError as exc:
+        raise StartupError("chunk_s", str(exc)) from None
     try:
         sim.advance(chunk_s)
     except SimulationError:

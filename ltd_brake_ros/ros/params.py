@@ -86,7 +86,8 @@ PARAMETERS = (
               "Coupler look-up-table YAML file; empty = the shipped couplers/buffer_hook_pugi.yaml",
               at_reset=True),
     ParamSpec("chunk_s", 0.02,
-              "Simulated time advanced and published per chunk [s]", lo=0.001, hi=10.0),
+              "Simulated time advanced and published per chunk [s]: a whole number of the "
+              "10 ms integration steps", lo=0.01, hi=10.0),
     ParamSpec("tolerance_m_s", DEFAULT_TOLERANCE_M_S,
               "Local error allowed per integration step in each vehicle's speed [m/s]; a step "
               "beyond it is taken in shorter sub-steps; 0 = fixed steps", lo=0.0, hi=1.0,

@@ -9,7 +9,8 @@ from typing import Callable, NamedTuple
 from ..inputs import (BrakeParams, CommandScript, Consist, CouplerLUT, Scenario, Track,
                      load_brake_params, load_coupler_lut, load_scenarios)
 from ..physics.kernel import DEFAULT_TOLERANCE_M_S
-from ..simulator import Commands, CouplerExcursions, SimulationError, Simulator, Snapshot
+from ..simulator import (Commands, CouplerExcursions, SimulationError, Simulator, Snapshot,
+                         whole_steps)
 
 
 class Progress(NamedTuple):
@@ -211,6 +212,7 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
     SimulationError
         A step failed, or the train had not stopped after ``max_time_s``.
     """
+    whole_steps(chunk_s, step_s, "chunk_s")
     sim = Simulator(consist, speed_kmh, params, lut or load_coupler_lut(), track, step_s=step_s,
                     tolerance_m_s=tolerance_m_s, adhesion=adhesion)
     start = time.perf_counter()
@@ -234,7 +236,9 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
         now = float(mass @ snap.speed_m_s) / total_kg
         last, decel, speed = decel, (speed - now) / span, now
         grouped = 1
-        if 0.0 < decel <= DECEL_GROWTH * last:  # braking, no longer building up (NaN: False)
+        # braking, no longer building up (NaN: False); once stopped, settling goes chunk by
+        # chunk (its couplers' recoil is no deceleration to predict from)
+        if 0.0 < decel <= DECEL_GROWTH * last and sim.stop_time_s is None:
             left = int((max_time_s - sim.time_s) / chunk_s + 1e-9)  # whole chunks to the end
             grouped = max(1, min(MAX_GROUPED, left,
                                  int(STOP_MARGIN * now / decel / chunk_s)))
@@ -290,9 +294,11 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
     Simulator
         The simulator at the end of the run (its counters, peaks and events describe it).
     """
+    whole_steps(chunk_s, step_s, "chunk_s")
     sim = Simulator(consist, speed_kmh, params, lut or load_coupler_lut(), track, step_s=step_s,
                     tolerance_m_s=tolerance_m_s, adhesion=adhesion)
     end = script.duration_s if script.duration_s is not None else max_time_s
+    end = math.ceil(end / step_s - 1e-6) * step_s  # the last chunk: whole steps too
     state: dict = {}
     k = 0
     start = time.perf_counter()
@@ -300,7 +306,9 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
         while k < len(script.steps) and script.steps[k][0] <= sim.time_s + 1e-9:
             state.update(script.steps[k][1])
             k += 1
-        snap = sim.advance(min(chunk_s, end - sim.time_s), Commands(**state))
+        left = end - sim.time_s
+        snap = sim.advance(chunk_s if left > chunk_s - 1e-6 * step_s else
+                           max(1, round(left / step_s)) * step_s, Commands(**state))
         _report(snap, script.duration_s, start, on_chunk, progress)
         if script.duration_s is None and k == len(script.steps) and _done(sim):
             break  # every command given and the train settled after its last stop

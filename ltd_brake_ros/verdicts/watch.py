@@ -407,7 +407,9 @@ class Watch:
                      travel_beyond_mm=beyond, travel_time_s=np.maximum(t_beyond, 0.0),
                      travel_speed_kmh=np.full(nc, math.nan), holding=holding,
                      runaway=runaway, wheel_temperature=wheel_temperature,
-                     rail_demand=self.rail_demand() if not other else None,
+                     # the demand was judged against the watched limits' rail
+                     rail_demand=self.rail_demand() if np.array_equal(
+                         lim.rail_table, self.limits.rail_table) else None,
                      first_time_s=None if other else dict(
                          self.first_time_s, coupler_travel=np.asarray(
                              kin.out_of_range_time_s[:nc], float)))
