@@ -48,6 +48,19 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "7.5/(V+44)+0.161), wet (0.6 x dry), a number (constant mu), or a YAML "
                         "file with speed_kmh, mu and source lists; default: off, as in the "
                         "paper's method")
+    p.add_argument("--band", metavar="FILE", nargs="?", const="",
+                   help="also run the stop under every member of a model-form band (every "
+                        "brake model x every coupler model of FILE, default the shipped "
+                        "bands/model_form.yaml) and print each key number as nominal [min, "
+                        "max] with the members that gave each end, each member inside or "
+                        "outside its models' ranges, and the band's verdict (PASS only if "
+                        "every member inside its range passes; model-dependent where they "
+                        "disagree; NON-PHYSICAL if any member is); not with --commands, "
+                        "--record or --timeseries")
+    p.add_argument("--rail", metavar="COND",
+                   help="the rail condition the adhesion demand is judged against (a "
+                        "warning, never a change of the run): dry, wet, low, a number or a "
+                        "curve file as for --adhesion; default: --adhesion's, else dry")
     p.add_argument("--timeseries", metavar="FILE",
                    help="write every vehicle's and coupler's history, a sample every "
                         f"{RECORD_CHUNK_S:g} s, to FILE in long (tidy) form: time_s, element "
@@ -57,9 +70,34 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
+def _band(args: argparse.Namespace, spec):
+    """The ``--band`` of a stop: every member's run, and the nominal member's simulator."""
+    from ..inputs.band import load_band
+    from ..studies.band import run_band
+
+    from ..inputs import InputError
+
+    if _adhesion(args) is not None or args.rail:
+        raise InputError("command line", "--band", "runs each member as the paper's method "
+                         "does: not with --adhesion or --rail")
+    return run_band(spec.consist, spec.speed_kmh, spec.params, spec.lut, spec.track,
+                    band=load_band(args.band or None), step_s=args.step_s,
+                    tolerance_m_s=tolerance(args), chunk_s=CHUNK_S, max_time_s=MAX_TIME_S)
+
+
+def _rail(args: argparse.Namespace):
+    """The ``--rail`` condition (None: the default)."""
+    return _condition(getattr(args, "rail", None), "--rail")
+
+
 def _adhesion(args: argparse.Namespace):
     """The ``--adhesion`` condition (None: off), a file read and checked here."""
-    spec = getattr(args, "adhesion", None)
+    return _condition(getattr(args, "adhesion", None), "--adhesion")
+
+
+def _condition(spec, option: str):
+    """An adhesion condition of the command line (None: not given), a file read and checked
+    here."""
     if spec is None:
         return None
     from ..inputs import InputError
@@ -71,7 +109,7 @@ def _adhesion(args: argparse.Namespace):
     except ValueError as exc:
         if spec.strip().lower().endswith((".yaml", ".yml")):
             return load_adhesion(spec)
-        raise InputError("command line", "--adhesion", str(exc)) from None
+        raise InputError("command line", option, str(exc)) from None
 
 
 def _start_up(args, spec, params, lut, adhesion) -> float:
@@ -176,6 +214,11 @@ def run(args: argparse.Namespace) -> int:
     if args.commands:
         return _run_script(args, spec)
     params, lut = spec.params, spec.lut
+    if args.band is not None:
+        for option, given in (("--record", args.record), ("--timeseries", args.timeseries)):
+            if given:
+                raise InputError("command line", "--band", f"runs every member of the band: "
+                                 f"not with {option}")
     events = []
     sampler = _timeseries(args)
     startup_s = _start_up(args, spec, params, lut, _adhesion(args))
@@ -186,12 +229,16 @@ def run(args: argparse.Namespace) -> int:
         # recorded or sampled: chunk by chunk; else several chunks a call while the stop is far
         # (the same steps and verdicts: the kernel keeps the peaks; the first times of the
         # limit events then come at the calls' ends)
-        sim = emergency_run(spec.consist, spec.speed_kmh, params, lut, spec.track,
-                            adhesion=_adhesion(args),
-                            step_s=args.step_s, tolerance_m_s=tolerance(args),
-                            chunk_s=_chunk(rec, sampler, CHUNK_S), max_time_s=MAX_TIME_S,
-                            group=sampler is None and not rec.recording,
-                            on_chunk=_on_chunk(rec, sampler, events), progress=progress)
+        band = None
+        if args.band is not None:
+            band, sim = _band(args, spec)
+        else:
+            sim = emergency_run(spec.consist, spec.speed_kmh, params, lut, spec.track,
+                                adhesion=_adhesion(args), rail=_rail(args),
+                                step_s=args.step_s, tolerance_m_s=tolerance(args),
+                                chunk_s=_chunk(rec, sampler, CHUNK_S), max_time_s=MAX_TIME_S,
+                                group=sampler is None and not rec.recording,
+                                on_chunk=_on_chunk(rec, sampler, events), progress=progress)
     res = summarize(sim, time.perf_counter() - start)
     _write_timeseries(args, sampler, sim, spec.speed_kmh)
     verdicts = sim.verdicts()
@@ -208,6 +255,8 @@ def run(args: argparse.Namespace) -> int:
         out["verdicts"] = verdicts.as_dict()
         out["non_physical"] = verdicts.non_physical
         out["stops"] = [s.as_dict() for s in sim.stops]
+        if band is not None:
+            out["band"] = band.as_dict()
         out["startup_s"] = startup_s
         out["plain_python_s"] = sim.plain_python_s
         out["served_by"] = _served_by()
@@ -239,6 +288,8 @@ def run(args: argparse.Namespace) -> int:
     _print_slides(sim)
     _print_heat(sim)
     _print_verdicts(verdicts)
+    if band is not None:
+        print("\n".join(band.describe()))
     print(f"start-up         {startup_s:.2f} s {_start_up_part(sim)}")
     print(f"cost             {res.wall_time_s * 1e3:.0f} ms wall, {res.real_time_factor:.0f}x "
           f"real time{_plain_part(sim)}, {res.steps} steps ({res.rejected_steps} rejected, "
@@ -296,7 +347,7 @@ def _run_script(args: argparse.Namespace, spec) -> int:
     with _Progress() as progress, _Recording(args, spec, script) as rec:
         start = time.perf_counter()  # the run and its recording, not opening the folder
         sim = scripted_run(spec.consist, spec.speed_kmh, script, spec.params, spec.lut,
-                           spec.track, adhesion=_adhesion(args),
+                           spec.track, adhesion=_adhesion(args), rail=_rail(args),
                            step_s=args.step_s, tolerance_m_s=tolerance(args),
                            chunk_s=_chunk(rec, sampler, RECORD_CHUNK_S),
                            on_chunk=_on_chunk(rec, sampler, events), progress=progress)

@@ -156,7 +156,7 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
                   chunk_s: float = 1.0, max_time_s: float = 600.0, group: bool = False,
                   on_chunk: Callable[[Snapshot], None] | None = None,
                   progress: Callable[[Progress], None] | None = None,
-                  adhesion=None) -> Simulator:
+                  adhesion=None, rail=None) -> Simulator:
     """An emergency stop: the brake applied at t = 0, chunks of ``chunk_s`` to the stop.
 
     The one loop of an emergency stop (:func:`emergency_stop`, ``ltd-brake simulate``,
@@ -201,6 +201,9 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
     adhesion : optional
         The rail's adhesion condition for wheel slide (see
         :class:`~ltd_brake_ros.simulator.Simulator`; default: off).
+    rail : optional
+        The rail condition the adhesion demand is judged against (default: ``adhesion``'s,
+        else dry).
 
     Returns
     -------
@@ -214,7 +217,7 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
     """
     whole_steps(chunk_s, step_s, "chunk_s")
     sim = Simulator(consist, speed_kmh, params, lut or load_coupler_lut(), track, step_s=step_s,
-                    tolerance_m_s=tolerance_m_s, adhesion=adhesion)
+                    tolerance_m_s=tolerance_m_s, adhesion=adhesion, rail=rail)
     start = time.perf_counter()
     commands: Commands | None = Commands(emergency=True)
     if group:
@@ -261,7 +264,7 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
                  tolerance_m_s: float | None = DEFAULT_TOLERANCE_M_S, chunk_s: float = 0.1,
                  max_time_s: float = 3600.0, on_chunk: Callable[[Snapshot], None] | None = None,
                  progress: Callable[[Progress], None] | None = None,
-                 adhesion=None) -> Simulator:
+                 adhesion=None, rail=None) -> Simulator:
     """Run a train under a timed command script.
 
     The inputs change at chunk boundaries (every ``chunk_s``), as they would when a controller
@@ -285,6 +288,9 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
         Called with each :class:`~ltd_brake_ros.simulator.Snapshot`.
     adhesion : optional
         The rail's adhesion condition for wheel slide (default: off).
+    rail : optional
+        The rail condition the adhesion demand is judged against (default: ``adhesion``'s,
+        else dry).
     progress : callable, optional
         Called with a :class:`Progress` after each chunk (``fraction`` of the script's
         duration; None without one).
@@ -296,7 +302,7 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
     """
     whole_steps(chunk_s, step_s, "chunk_s")
     sim = Simulator(consist, speed_kmh, params, lut or load_coupler_lut(), track, step_s=step_s,
-                    tolerance_m_s=tolerance_m_s, adhesion=adhesion)
+                    tolerance_m_s=tolerance_m_s, adhesion=adhesion, rail=rail)
     end = script.duration_s if script.duration_s is not None else max_time_s
     end = math.ceil(end / step_s - 1e-6) * step_s  # the last chunk: whole steps too
     state: dict = {}

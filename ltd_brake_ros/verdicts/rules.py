@@ -23,8 +23,8 @@ __all__ = ["ADHESION_AT_SPEED_LIMIT", "ADHESION_LIMIT", "ADHESION_LIMIT_WSP",
 #: standard's summary): the weaker part breaks.
 DRAFT_STRENGTH_N = 850e3
 #: Default buff strength of a coupling [N]: the longitudinal compressive proof load of a
-#: freight wagon body at buffer height, 2000 kN (EN 12663-2; the value and its category name
-#: are not verified in the standard's text).
+#: freight wagon body at buffer height, 2000 kN for category F-I (EN 12663-2:2010, Table 2,
+#: read in a DIN copy; category F-II: 1200 kN).
 BUFF_STRENGTH_N = 2000e3
 #: Default limit of the mean utilised adhesion of a vehicle without wheel-slide protection
 #: [-]: 0.12, above which tread-braked units need wheel-slide protection (TSI LOC&PAS,
@@ -155,14 +155,15 @@ CRITERIA = {
                     "km/h", "FAIL", "every vehicle once the train has settled at rest (every "
                     "vehicle within 1 mm/s for 2 s), until traction is commanded, brake "
                     "applied or released"),
-    "wheel_temperature": Rule("Wheel temperature", "mean wheel temperature", "vehicle", "K",
-                              "WARN", "vehicles with block brakes, all speeds"),
+    "wheel_temperature": Rule("Wheel temperature, indicative", "mean wheel temperature",
+                              "vehicle", "K", "WARN", "vehicles with block brakes, all speeds"),
 }
 _DEFAULT_ORIGIN = {
     "draft_strength": "default 850 kN: screw coupling breaking load (UIC 520/826 via secondary "
                       "sources, not verified; EN 15566 draw-gear categories 1.0/1.2/1.5 MN)",
-    "buff_strength": "default 2000 kN: wagon body compressive proof load (EN 12663-2, not "
-                     "verified in its text)",
+    "buff_strength": "default 2000 kN: wagon body compressive proof load at buffer height, "
+                     "category F-I (EN 12663-2:2010 Table 2, read in a DIN copy; F-II wagons: "
+                     "1200 kN, set buff_strength_kN)",
     "endurable_lcf": "not given (EN 15839: a property of each vehicle; set limits."
                      "endurable_lcf_kN in the consist)",
     "adhesion": "default 0.12 without wheel-slide protection (TSI LOC&PAS 4.2.4.6.2's trigger "
@@ -183,11 +184,13 @@ _DEFAULT_ORIGIN = {
                           + STATIC_FRICTION_ORIGIN,
     "runaway": "a train at rest moves only under traction: any vehicle faster than the "
                "standstill speed, 1 mm/s, after the train has settled is a runaway",
-    "wheel_temperature": "default 623 K (350 C): a conservative value chosen, no limit "
-                         "verified (none retrieved from EN 13979-1's thermomechanical "
-                         "assessment); 50 K above this model's 572 K for the freight-wagon "
-                         "TSI's thermal reference case (45 kW per wheel for 34 min); lumped "
-                         "model, the tread and rim are hotter, rail chill not modelled",
+    "wheel_temperature": "indicative: 623 K (350 C), a value chosen, not a verified limit (no "
+                         "criterion retrieved from EN 13979-1's thermomechanical assessment); "
+                         "50 K above this model's 572 K for the freight-wagon TSI's thermal "
+                         "reference case (45 kW per wheel for 34 min); the heat model is not "
+                         "validated (no published drag-braking case with rim temperatures "
+                         "found), lumped, the tread and rim are hotter, rail chill not "
+                         "modelled",
 }
 
 

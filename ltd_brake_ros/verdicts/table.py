@@ -78,7 +78,10 @@ class Exceedance:
     def describe(self) -> str:
         """One line: which, by how much, when, at what speed."""
         rule = CRITERIA[self.criterion]
-        speed = f", {self.speed_kmh:.1f} km/h" if math.isfinite(self.speed_kmh) else ""
+        # a vehicle that moves is never shown at 0.0 km/h: below 1 km/h, two digits that count
+        v = self.speed_kmh
+        speed = ("" if not math.isfinite(v) else f", {v:.1f} km/h" if v >= 1.0 or v == 0.0
+                 else f", {v:.2g} km/h")
         who = "train" if self.element == "train" else f"{self.element} {self.number}"
         if not math.isfinite(self.time_s):  # not of a moment: a design check
             return f"{who}: {rule.quantity} {_amount(rule.unit, self.value, self.limit)}{speed}"
