@@ -377,6 +377,10 @@ class RunResult:
         Every stop of the run, each its own record: brake command time and speed, stopping
         distance and time, settled time, peak forces with their couplers, and its verdicts
         (:class:`~ltd_brake_ros.stops.StopRecord`).
+    band : BandResult or None
+        The stop under every member of a model-form band, when asked for
+        (:class:`~ltd_brake_ros.studies.band.BandResult`; the summary, verdicts and time
+        series are then the nominal member's).
     """
 
     summary: StopResult | None
@@ -384,6 +388,7 @@ class RunResult:
     timeseries: TimeSeries
     simulator: Simulator
     stops: tuple = ()
+    band: Any = None
 
     def to_dataframe(self, element: str | None = "vehicle"):
         """:meth:`TimeSeries.to_dataframe` of the run."""
@@ -419,8 +424,8 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
                    coupler: CouplerLUT | None = None, track: Track | None = None,
                    sample_s: float = 0.1, step_s: float = 0.01,
                    tolerance_m_s: float | None = DEFAULT_TOLERANCE_M_S,
-                   max_time_s: float = 600.0) -> RunResult:
-    """Apply the emergency brake at t = 0 and run to the stop.
+                   max_time_s: float = 600.0, band=False) -> RunResult:
+    """Apply the emergency brake at t = 0 and run to the stop, the train settled.
 
     Parameters
     ----------
@@ -439,6 +444,9 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
         Local error allowed per step in each vehicle's speed [m/s] (0 or None: fixed steps).
     max_time_s : float, optional
         Give up if the train has not stopped by then [s].
+    band : bool, str, path-like or ModelFormBand, optional
+        Also run the stop under every member of a model-form band (True: the shipped
+        ``bands/model_form.yaml``; a file; or a loaded band): :attr:`RunResult.band`.
 
     Returns
     -------
@@ -453,12 +461,23 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
                       track=track, step_s=step_s, tolerance_m_s=tolerance_m_s)
     sampler = _Sampler()
     start = time.perf_counter()
-    sim = emergency_run(consist, speed_kmh, params, coupler, track, step_s=step_s,
-                        tolerance_m_s=tolerance_m_s, chunk_s=sample_s, max_time_s=max_time_s,
-                        on_chunk=sampler)
+    result = None
+    if band is not False and band is not None:
+        from .inputs.band import ModelFormBand, load_band
+        from .studies.band import run_band
+
+        members = band if isinstance(band, ModelFormBand) else load_band(
+            None if band is True else band)
+        result, sim = run_band(consist, speed_kmh, params, coupler, track, band=members,
+                               step_s=step_s, tolerance_m_s=tolerance_m_s, chunk_s=sample_s,
+                               max_time_s=max_time_s, on_nominal=sampler)
+    else:
+        sim = emergency_run(consist, speed_kmh, params, coupler, track, step_s=step_s,
+                            tolerance_m_s=tolerance_m_s, chunk_s=sample_s,
+                            max_time_s=max_time_s, on_chunk=sampler)
     summary = summarize(sim, time.perf_counter() - start)
     return RunResult(summary, sim.verdicts(), sampler.series(sim, _attrs(sim, speed_kmh)), sim,
-                     sim.stops)
+                     sim.stops, result)
 
 
 def run_commands(consist: Consist, speed_kmh: float, commands, *,

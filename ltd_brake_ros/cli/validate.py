@@ -30,6 +30,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "T_e(500 m) = 2.2 +/- 1.0 s in P (UIC 544-1), distances within 1 %% of "
                         "LTDPoliTo, peak draft within 15 %% and buff within 20 %% of the paper; "
                         "--params defaults to brake_params/uic_brake_pipe.yaml")
+    p.add_argument("--band", metavar="FILE", nargs="?", const="",
+                   help="then run each scenario's model-form band (every brake x coupler model "
+                        "of FILE, default the shipped bands/model_form.yaml; the paper's "
+                        "method is the nominal member) and print per key number in how many "
+                        "of the runs the band holds the paper's value: a figure, not a target "
+                        "(not with --json)")
     p.add_argument("--json", action="store_true", help="print JSON instead of the table")
     p.set_defaults(func=run)
     return p
@@ -91,6 +97,28 @@ def targets_lines(rows, targets=None) -> list[str]:
             for what, ok, detail in targets(rows)]
 
 
+def band_coverage_lines(band_file, scenarios, step_s: float, workers: int) -> list[str]:
+    """In how many runs of Tables 1-2 the model-form band holds the paper's value, per key
+    number (:func:`~ltd_brake_ros.studies.band.tables_coverage`), and each run's band."""
+    from ..inputs.band import load_band
+    from ..studies.band import BAND_KPIS, tables_coverage
+
+    rows = tables_coverage(load_band(band_file), scenarios, step_s=step_s, workers=workers)
+    lines = [f"model-form band of Tables 1-2 ({rows[0][1].band}): does it hold the paper's "
+             "value? (a figure, not a target)"]
+    for name, (label, unit) in BAND_KPIS.items():
+        held = [s.number for s, _, c in rows if c.get(name)]
+        lines.append(f"  {label}: {len(held)} of {len(rows)} runs"
+                     + (f" (runs {', '.join(map(str, held))})" if held else ""))
+    for s, r, c in rows:
+        d, f, b = (r.kpis[k] for k in BAND_KPIS)
+        lines.append(f"  run {s.number:>2}: {d.low:.1f}-{d.high:.1f} m (paper "
+                     f"{s.paper['ltdpolito_m']:g}), draft {f.low:.0f}-{f.high:.0f} kN "
+                     f"({s.paper['draft_kN']}), buff {-b.low:.0f}-{-b.high:.0f} kN "
+                     f"({s.paper['buff_kN']}); {r.status}")
+    return lines
+
+
 def run(args: argparse.Namespace) -> int:
     """Print the paper's Tables 1-2 beside our results."""
     from ..inputs import InputError, load_scenarios
@@ -147,5 +175,9 @@ def run(args: argparse.Namespace) -> int:
         judged = targets_lines(rows, lambda _rows: judgment_targets(params, lut))
         print("\n".join(judged))
         lines += judged
+    if args.band is not None:
+        print()
+        print("\n".join(band_coverage_lines(args.band or None, scenarios, args.step_s,
+                                            workers)))
     # a failed target is a failed validation (for scripts and CI)
     return 1 if any(line.lstrip().startswith("FAIL") for line in lines) else 0

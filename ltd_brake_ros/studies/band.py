@@ -28,7 +28,8 @@ from ..inputs.band import ModelFormBand, load_band
 from ..physics.kernel import DEFAULT_TOLERANCE_M_S
 from .runs import emergency_run
 
-__all__ = ["BAND_KPIS", "BandKPI", "BandResult", "MemberResult", "run_band"]
+__all__ = ["BAND_KPIS", "BandKPI", "BandResult", "MemberResult", "contains_paper", "run_band",
+           "tables_coverage"]
 
 #: The key numbers of a band: attribute of :class:`MemberResult` -> (label, unit).
 BAND_KPIS = {"stopping_distance_m": ("stopping distance", "m"),
@@ -281,3 +282,44 @@ def contains_paper(result: BandResult, paper: dict) -> dict:
               "peak_buff_kN": -paper["buff_kN"]}
     return {k: result.kpis[k].contains(v) for k, v in values.items()
             if math.isfinite(v)}
+
+
+def tables_coverage(band: ModelFormBand | None = None, scenarios: list[int] | None = None, *,
+                    step_s: float = 0.01, workers: int = 1) -> list[tuple]:
+    """The band of each run of the paper's Tables 1-2, and whether it holds the paper's values.
+
+    A figure, not a target: no member is added or tuned for it.
+
+    Parameters
+    ----------
+    band : ModelFormBand, optional
+        The members (default: the shipped band).
+    scenarios : list of int, optional
+        Scenario numbers (default: all 12).
+    step_s : float, optional
+    workers : int, optional
+        Processes to run the scenarios on.
+
+    Returns
+    -------
+    list of (Scenario, BandResult, dict)
+        Per scenario its band and :func:`contains_paper`.
+    """
+    from ..inputs import load_brake_params, load_scenarios
+    from .parallel import map_jobs
+
+    band = band or load_band()
+    catalogue = load_scenarios()
+    chosen = [catalogue[k] for k in (scenarios or sorted(catalogue))]
+    # the nominal member is the paper's method (empirical model, the paper's table)
+    jobs = [(s.consist_file, s.speed_kmh, load_brake_params("brake_params/paper.yaml"), band,
+             step_s) for s in chosen]
+    results = map_jobs(_band_job, jobs, workers)
+    return [(s, r, contains_paper(r, s.paper)) for s, r in zip(chosen, results)]
+
+
+def _band_job(job) -> BandResult:
+    from ..inputs import load_consist
+
+    consist_file, speed, params, band, step_s = job
+    return run_band(load_consist(consist_file), speed, params, band=band, step_s=step_s)[0]
