@@ -658,6 +658,16 @@ class Simulator:
         return merge_verdicts([self._window_verdicts(w, limits)
                                for w in [*st.closed, st.window]])
 
+    def current_verdicts(self) -> Verdicts:
+        """The verdicts of the part of the run judged now: the latest stop's, from its command,
+        until a drive-off; then the run's since the drive-off (:mod:`~ltd_brake_ros.stops`).
+
+        Returns
+        -------
+        Verdicts
+        """
+        return self._window_verdicts(self._state.window)
+
     def _window_verdicts(self, w: stops.Window, limits: TrainLimits | None = None) -> Verdicts:
         """The verdicts of one window (a closed window's, by the watched limits, kept)."""
         if w.extremes is not None and limits is None and w.verdicts is not None:

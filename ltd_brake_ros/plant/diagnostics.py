@@ -205,10 +205,12 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
         "resets": str(resets),
         "recording": recording,
     }
-    # coupler strength and adhesion since the last reset: a limit exceeded is a WARN (the
-    # run goes on: the plant reports what a real train would not survive)
-    verdicts = sim.verdicts()
+    # the judgments of the part of the run judged now (the latest stop, until a drive-off):
+    # a limit exceeded is a WARN (the run goes on: the plant reports what a real train would
+    # not survive); a drive-off starts afresh, the run's own status stays in run_verdicts
+    verdicts = sim.current_verdicts()
     values.update(diagnostic_values(verdicts))
+    values["run_verdicts"] = sim.verdicts().status
     if verdicts.status != "PASS" and level == OK:
         beyond = [c.name for c in verdicts.criteria if c.status in ("FAIL", "WARN")]
         level, message = WARN, f"{message}; limits exceeded: {', '.join(beyond)}"
@@ -220,9 +222,16 @@ def plant_status(sim: Simulator, *, state: str, reason: str = "", achieved: floa
         values["recording_error"] = recording_error
         if level == OK:
             level, message = WARN, "recording stopped"
+    values["phase"] = sim.phase
+    stops = sim.stops
+    values["stops"] = str(len(stops))
+    if stops:
+        values["stop"] = stops[-1].describe()
     if sim.stopping_distance_m is not None:
         values["stopping_distance_m"] = f3(sim.stopping_distance_m)
         values["stop_time_s"] = f3(sim.stop_time_s - (sim.command_time_s or 0.0))
+    if sim.settled_time_s is not None:
+        values["settled_time_s"] = f3(sim.settled_time_s)
     if state == "failed":
         values["error"] = reason
     return PlantStatus(level, message, values)
