@@ -333,23 +333,41 @@ def _optional(name: str):
                           "dependencies of ltd_brake_ros: reinstall it)") from None
 
 
+def _stamp_ns(time_s: float) -> int:
+    """A simulated time on the nanosecond grid [ns]: the stamp a recording gives the same
+    state (the simulator sums its steps in floating point, 0.1 s ten times being
+    0.9999999999999999 s)."""
+    return round(time_s * 1e9)
+
+
+def _seconds(stamps_ns) -> np.ndarray:
+    """Nanosecond stamps as seconds, each the float nearest to its exact value (a division,
+    correctly rounded: 300_000_000 ns is 0.3 as written)."""
+    return np.asarray(stamps_ns, np.int64) / 1e9
+
+
 class _Sampler:
-    """Collects snapshots into a :class:`TimeSeries`."""
+    """Collects snapshots into a :class:`TimeSeries`, the state at t = 0 first
+    (:meth:`start`)."""
 
     def __init__(self):
-        self.t: list[float] = []
+        self.t: list[int] = []
         self.v: dict[str, list] = {k: [] for k in VEHICLE_QUANTITIES}
         self.c: list = []
 
+    def start(self, sim: Simulator) -> None:
+        """Sample the state before the first chunk (t = 0)."""
+        self(sim.snapshot())
+
     def __call__(self, snap: Snapshot) -> None:
-        self.t.append(snap.time_s)
+        self.t.append(_stamp_ns(snap.time_s))
         for k, a in self.v.items():
             a.append(np.array(getattr(snap, k), float))
         self.c.append(np.array(snap.coupler_force_N, float))
 
     def series(self, sim: Simulator, attrs: dict) -> TimeSeries:
         n = sim.n
-        return TimeSeries(np.array(self.t, float),
+        return TimeSeries(_seconds(self.t),
                           {k: np.array(a, float).reshape(len(self.t), n)
                            for k, a in self.v.items()},
                           {"coupler_force_N": np.array(self.c, float).reshape(
@@ -450,7 +468,7 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
     start = time.perf_counter()
     sim = emergency_run(consist, speed_kmh, params, coupler, track, step_s=step_s,
                         tolerance_m_s=tolerance_m_s, chunk_s=sample_s, max_time_s=max_time_s,
-                        on_chunk=sampler)
+                        on_chunk=sampler, on_start=sampler.start)
     summary = summarize(sim, time.perf_counter() - start)
     return RunResult(summary, sim.verdicts(), sampler.series(sim, _attrs(sim, speed_kmh)), sim)
 
@@ -486,7 +504,7 @@ def run_commands(consist: Consist, speed_kmh: float, commands, *,
     start = time.perf_counter()
     sim = scripted_run(consist, speed_kmh, script, params, coupler, track, step_s=step_s,
                        tolerance_m_s=tolerance_m_s, chunk_s=sample_s, max_time_s=max_time_s,
-                       on_chunk=sampler)
+                       on_chunk=sampler, on_start=sampler.start)
     wall = time.perf_counter() - start
     summary = summarize(sim, wall) if sim.stopping_distance_m is not None else None
     return RunResult(summary, sim.verdicts(), sampler.series(sim, _attrs(sim, speed_kmh)), sim)
@@ -545,10 +563,10 @@ def read_recording(path: str | os.PathLike, namespace: str | None = None) -> Rec
              "vehicles/brake_force": "brake_force_N",
              "vehicles/traction_force": "traction_force_N",
              "couplers/force": "coupler_force_N"}
-    rows: dict[float, dict] = {}
+    rows: dict[int, dict] = {}  # by the stamp [ns]
     for name, t, _log, value in plant_samples(path, report.namespace, report.stamped):
         if name in names and name in ARRAYS:
-            rows.setdefault(round(t, 9), {})[names[name]] = np.asarray(value, float)
+            rows.setdefault(_stamp_ns(t), {})[names[name]] = np.asarray(value, float)
     times = sorted(rows)
     complete = [t for t in times if len(rows[t]) == len(
         {k for r in rows.values() for k in r})]  # samples holding every recorded quantity
@@ -570,7 +588,7 @@ def read_recording(path: str | os.PathLike, namespace: str | None = None) -> Rec
         attrs["initial_speed_kmh"] = float(meta["initial_speed_kmh"])
     if isinstance(meta.get("consist"), dict) and isinstance(meta["consist"].get("name"), str):
         attrs["consist"] = meta["consist"]["name"]
-    return Recording(report, TimeSeries(np.array(complete, float), vehicles, couplers,
+    return Recording(report, TimeSeries(_seconds(complete), vehicles, couplers,
                                         names_list, attrs))
 
 

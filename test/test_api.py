@@ -65,7 +65,10 @@ def test_emergency_stop_is_the_stop_of_the_library_with_its_time_series(run6):
     k, n = ts.time_s.size, 33
     assert ts.vehicles["speed_m_s"].shape == (k, n) and ts.couplers["coupler_force_N"].shape \
         == (k, n - 1)
-    np.testing.assert_allclose(np.diff(ts.time_s), 0.1, atol=1e-9)  # a sample every 0.1 s
+    # a sample every 0.1 s, from t = 0 (the state before the brake command), each time the
+    # float nearest to k * 0.1 s as written (0.3, not the simulator's summed 0.30000000000000004)
+    assert ts.time_s[0] == 0.0 and ts.vehicles["speed_m_s"][0, 0] == 100 / 3.6
+    assert ts.time_s.tolist() == [float(f"{k / 10:.1f}") for k in range(ts.time_s.size)]
     assert ts.time_s[-1] == pytest.approx(run6.summary.stop_time_s, abs=0.1 + 1e-9)
     # the samples lie within the run's peaks, and the head's travel is the stopping distance
     f = ts.couplers["coupler_force_N"]
@@ -93,6 +96,9 @@ def test_time_series_as_a_tidy_dataframe_and_an_xarray_dataset(run6):
     assert len(long) == k * (5 * 33 + 32) and set(long.element) == {"vehicle", "coupler"}
     ds = run6.to_xarray()
     assert dict(ds.sizes) == {"time": k, "vehicle": 33, "coupler": 32}
+    # every sample time indexes the Dataset, as a user types it
+    for t in (0.0, 0.3, 10.0, *ts.time_s):
+        assert ds.sel(time=t).time.item() == t
     assert ds.coupler_force_N.attrs["units"] == "N" and "draft" in ds.attrs["conventions"]
     assert ds.vehicle_name.values[0] == "E402B"
     np.testing.assert_array_equal(ds.speed_m_s.values, ts.vehicles["speed_m_s"])
@@ -123,7 +129,8 @@ def test_simulate_writes_the_time_series_and_refuses_to_overwrite(tmp_path, caps
     lines = out.read_text().splitlines()
     k = (len(lines) - 1) // (5 * 11 + 10)
     assert (len(lines) - 1) == k * (5 * 11 + 10)
-    assert k * 0.1 == pytest.approx(summary["stop_time_s"], abs=0.1 + 1e-9)
+    assert (k - 1) * 0.1 == pytest.approx(summary["stop_time_s"], abs=0.1 + 1e-9)  # t = 0 on
+    assert lines[1].startswith("0.0,vehicle,0,position_m,")
     assert main(["simulate", "--scenario", "1", "--timeseries", str(out)]) == 2
     assert "exists" in capsys.readouterr().err
 
@@ -151,6 +158,14 @@ def test_a_recording_reads_back_as_the_run(tmp_path, capsys):
         == 10
     assert ts.vehicle_names[:2] == ["E402B", "Shimmns"] and ts.attrs["initial_speed_kmh"] == 100
     assert ts.vehicles["speed_m_s"][0, 0] == pytest.approx(100 / 3.6, rel=1e-3)
+    # the same run in Python joins its recording on time: every row of either matched, and the
+    # states agree (the recording holds float64 arrays of the same chunks)
+    run = api.emergency_stop(api.load_consist(1), 100.0)
+    pytest.importorskip("pandas")
+    mine, theirs = run.to_dataframe("vehicle"), rec.to_dataframe("vehicle")
+    joined = mine.merge(theirs, on=["time_s", "vehicle"], suffixes=("", "_rec"))
+    assert len(joined) == len(mine) == len(theirs)
+    np.testing.assert_array_equal(joined.speed_m_s, joined.speed_m_s_rec)
 
 
 def test_a_campaign_from_a_mapping_runs(tmp_path):

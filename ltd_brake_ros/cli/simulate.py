@@ -190,7 +190,8 @@ def run(args: argparse.Namespace) -> int:
                             step_s=args.step_s, tolerance_m_s=tolerance(args),
                             chunk_s=_chunk(rec, sampler, CHUNK_S), max_time_s=MAX_TIME_S,
                             group=sampler is None and not rec.recording,
-                            on_chunk=_on_chunk(rec, sampler, events), progress=progress)
+                            on_chunk=_on_chunk(rec, sampler, events), progress=progress,
+                            on_start=sampler and sampler.start)
     res = summarize(sim, time.perf_counter() - start)
     _write_timeseries(args, sampler, sim, spec.speed_kmh)
     verdicts = sim.verdicts()
@@ -295,7 +296,8 @@ def _run_script(args: argparse.Namespace, spec) -> int:
                            spec.track, adhesion=_adhesion(args),
                            step_s=args.step_s, tolerance_m_s=tolerance(args),
                            chunk_s=_chunk(rec, sampler, RECORD_CHUNK_S),
-                           on_chunk=_on_chunk(rec, sampler, events), progress=progress)
+                           on_chunk=_on_chunk(rec, sampler, events), progress=progress,
+                           on_start=sampler and sampler.start)
     wall = time.perf_counter() - start
     _write_timeseries(args, sampler, sim, spec.speed_kmh)
     snap = sim.snapshot()

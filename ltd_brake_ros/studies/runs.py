@@ -143,7 +143,8 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
                   chunk_s: float = 1.0, max_time_s: float = 600.0, group: bool = False,
                   on_chunk: Callable[[Snapshot], None] | None = None,
                   progress: Callable[[Progress], None] | None = None,
-                  adhesion=None) -> Simulator:
+                  adhesion=None, on_start: Callable[[Simulator], None] | None = None
+                  ) -> Simulator:
     """An emergency stop: the brake applied at t = 0, chunks of ``chunk_s`` to the stop.
 
     The one loop of an emergency stop (:func:`emergency_stop`, ``ltd-brake simulate``,
@@ -186,6 +187,8 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
     adhesion : optional
         The rail's adhesion condition for wheel slide (see
         :class:`~ltd_brake_ros.simulator.Simulator`; default: off).
+    on_start : callable, optional
+        Called with the simulator before its first chunk (its state at t = 0).
 
     Returns
     -------
@@ -199,6 +202,8 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
     """
     sim = Simulator(consist, speed_kmh, params or load_brake_params(), lut or load_coupler_lut(),
                     track, step_s=step_s, tolerance_m_s=tolerance_m_s, adhesion=adhesion)
+    if on_start:
+        on_start(sim)
     start = time.perf_counter()
     commands: Commands | None = Commands(emergency=True)
     if group:
@@ -243,7 +248,8 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
                  tolerance_m_s: float | None = DEFAULT_TOLERANCE_M_S, chunk_s: float = 0.1,
                  max_time_s: float = 3600.0, on_chunk: Callable[[Snapshot], None] | None = None,
                  progress: Callable[[Progress], None] | None = None,
-                 adhesion=None) -> Simulator:
+                 adhesion=None, on_start: Callable[[Simulator], None] | None = None
+                 ) -> Simulator:
     """Run a train under a timed command script.
 
     The inputs change at chunk boundaries (every ``chunk_s``), as they would when a controller
@@ -270,6 +276,8 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
     progress : callable, optional
         Called with a :class:`Progress` after each chunk (``fraction`` of the script's
         duration; None without one).
+    on_start : callable, optional
+        Called with the simulator before its first chunk (its state at t = 0).
 
     Returns
     -------
@@ -278,6 +286,8 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
     """
     sim = Simulator(consist, speed_kmh, params or load_brake_params(), lut or load_coupler_lut(),
                     track, step_s=step_s, tolerance_m_s=tolerance_m_s, adhesion=adhesion)
+    if on_start:
+        on_start(sim)
     end = script.duration_s if script.duration_s is not None else max_time_s
     state: dict = {}
     k = 0
