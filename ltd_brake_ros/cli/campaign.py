@@ -33,13 +33,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Summarise a results folder; with --against, compare it with a reference "
                     "family's folder (the relative approach of UIC 421).",
-        epilog="relative approach: for each KPI, the percentile-bootstrap interval of the\n"
-               "family's worsening of its --quantile against the reference (relative to the\n"
-               "reference's quantile, in the KPI's worse direction: peak_buff_kN is negative,\n"
-               "more negative is worse) gives 'not worse' (the interval lies below --margin),\n"
-               "'worse' (above it) or 'inconclusive' (it holds the margin). Two folders drawn\n"
-               "from the same seed whose runs are the same trains are resampled jointly\n"
-               "(paired), others independently.\n"
+        epilog="relative approach: for each KPI, the interval of the family's worsening of\n"
+               "its --quantile against the reference (relative to the reference's quantile,\n"
+               "in the KPI's worse direction: peak_buff_kN is negative, more negative is\n"
+               "worse) gives 'not worse' (the interval lies below --margin), 'worse' (above\n"
+               "it) or 'inconclusive' (it holds the margin, or fewer than 20 runs lie beyond\n"
+               "the quantile: no interval). Two folders drawn from the same seed whose runs\n"
+               "are the same trains are compared as paired runs, others as independent.\n"
                "exit status: 0 report (with --against: every deciding KPI not worse), 1 a\n"
                "deciding KPI worse, 4 none worse but one inconclusive, 2 bad input.")
     q.add_argument("dir", metavar="DIR", help="results folder")
@@ -51,7 +51,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="quantile the relative approach compares, in the KPI's worse "
                         "direction (default 0.99: the value 1 %% of the runs go beyond)")
     q.add_argument("--confidence", type=float, default=0.95, metavar="C",
-                   help="two-sided confidence of the bootstrap intervals (default 0.95; a "
+                   help="two-sided confidence of the intervals (default 0.95; a "
                         "verdict is a one-sided test at (1 - C) / 2)")
     q.add_argument("--margin", type=float, default=0.05, metavar="M",
                    help="non-inferiority margin: how much worse than the reference's quantile "
@@ -61,7 +61,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "peak_buff_kN; also stopping_distance_m, mean_adhesion, "
                         "max_adhesion_demand); the others are shown but do not decide")
     q.add_argument("--independent", action="store_true",
-                   help="resample the two families independently even when they are paired")
+                   help="compare the two families as independent samples even when they are "
+                        "paired")
     q.add_argument("--worst", type=int, default=5, metavar="N",
                    help="worst runs listed (default 5)")
     q.add_argument("--plots", metavar="DIR", help="write CDF and histogram PNGs here")
