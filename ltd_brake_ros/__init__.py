@@ -33,6 +33,7 @@ _EXPORTS = {
     "read_recording": "api", "Recording": "api",
     # campaigns
     "load_campaign": "api", "run_campaign": "api", "read_campaign": "api",
+    "CampaignResults": "analysis.campaign_results", "Comparison": "analysis.campaign_results",
 }
 __all__ = sorted(_EXPORTS) + ["__version__"]
 
@@ -58,3 +59,4 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from .simulator import Commands, SimulationError, Simulator, Snapshot
     from .studies.runs import StopResult
     from .verdicts import Verdicts
+    from .analysis.campaign_results import CampaignResults, Comparison

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 import time
 from collections.abc import Mapping, Sequence
@@ -54,7 +55,12 @@ VEHICLE_QUANTITIES = {
     "brake_force_N": ("N", "air-brake retarding force, positive"),
     "traction_force_N": ("N", "traction (positive) or dynamic-brake (negative) force"),
     "block_force_N": ("N", "total force on the brake blocks or pads, F_B,tot"),
+    "block_temperature_K": ("K", "brake-block temperature, lumped (NaN: no block brakes)"),
+    "wheel_temperature_K": ("K", "wheel (tread and rim) temperature, lumped (NaN: no block "
+                                 "brakes)"),
 }
+#: Quantities a snapshot carries among its extras rather than as fields.
+_EXTRAS = ("block_temperature_K", "wheel_temperature_K")
 #: Per-coupler quantities of a time series: name -> (unit, description).
 COUPLER_QUANTITIES = {
     "coupler_force_N": ("N", "coupler force, draft (tension) positive, buff negative"),
@@ -187,6 +193,44 @@ class TimeSeries:
     def n_vehicles(self) -> int:
         """Vehicles in the train."""
         return next(iter(self.vehicles.values())).shape[1] if self.vehicles else 0
+
+    @property
+    def time_ns(self) -> np.ndarray:
+        """The sample times as whole nanoseconds (int64), the stamps of a recording [ns]."""
+        return np.round(self.time_s * 1e9).astype(np.int64)
+
+    def __eq__(self, other) -> bool:
+        """Equal names, attributes and arrays, bit for bit (NaN equal to NaN)."""
+        def same(a, b) -> bool:
+            a, b = np.asarray(a), np.asarray(b)
+            return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+
+        return (isinstance(other, TimeSeries) and same(self.time_s, other.time_s)
+                and self.vehicles.keys() == other.vehicles.keys()
+                and self.couplers.keys() == other.couplers.keys()
+                and all(same(a, other.vehicles[k]) for k, a in self.vehicles.items())
+                and all(same(a, other.couplers[k]) for k, a in self.couplers.items())
+                and list(self.vehicle_names) == list(other.vehicle_names)
+                and self.attrs == other.attrs)
+
+    __hash__ = None
+
+    def __repr__(self) -> str:
+        k, t = self.time_s.size, self.time_s
+        span = f"{t[0]:g}-{t[-1]:g} s" if k else "no samples"
+        every = f" every {t[1] - t[0]:.6g} s" if k > 1 else ""
+        return (f"TimeSeries({k} samples, {span}{every}; {self.n_vehicles} vehicles: "
+                f"{', '.join(self.vehicles)}; couplers: {', '.join(self.couplers)}; "
+                ".to_dataframe(), .to_xarray())")
+
+    def _repr_html_(self) -> str:
+        from ._display import html_table
+
+        units = {**VEHICLE_QUANTITIES, **COUPLER_QUANTITIES}
+        rows = [(name, units[name][0], "x".join(map(str, a.shape)), units[name][1])
+                for name, a in (*self.vehicles.items(), *self.couplers.items())]
+        return html_table(repr(self).split(";")[0], rows,
+                          ["quantity", "unit", "shape (time x element)", "meaning"])
 
     def _long(self) -> dict:
         """The long (tidy) columns: one row per time, element and quantity."""
@@ -325,6 +369,29 @@ class TimeSeries:
         raise InputError(str(p), "", "time series are written as .parquet or .csv")
 
 
+def _equal(a, b) -> bool:
+    """Equal results: dataclasses field by field, arrays bit for bit, NaN equal to NaN."""
+    import dataclasses
+
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, np.ndarray):
+        return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+    if isinstance(a, float):
+        return a == b or (math.isnan(a) and math.isnan(b))
+    if isinstance(a, (list, tuple)):
+        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b))
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
+    if dataclasses.is_dataclass(a) and not isinstance(a, (TimeSeries, RunResult)):
+        return all(_equal(getattr(a, f.name), getattr(b, f.name))
+                   for f in dataclasses.fields(a))
+    if hasattr(a, "__dict__") and not dataclasses.is_dataclass(a) and \
+            type(a).__eq__ is object.__eq__:
+        return _equal(vars(a), vars(b))
+    return bool(a == b)
+
+
 def _optional(name: str):
     try:
         return __import__(name)
@@ -362,7 +429,7 @@ class _Sampler:
     def __call__(self, snap: Snapshot) -> None:
         self.t.append(_stamp_ns(snap.time_s))
         for k, a in self.v.items():
-            a.append(np.array(getattr(snap, k), float))
+            a.append(np.array(snap.extras[k] if k in _EXTRAS else getattr(snap, k), float))
         self.c.append(np.array(snap.coupler_force_N, float))
 
     def series(self, sim: Simulator, attrs: dict) -> TimeSeries:
@@ -380,7 +447,11 @@ class _Sampler:
 
 @dataclass
 class RunResult:
-    """A simulated run: its summary, its verdicts and its time series.
+    """A simulated run: its summary, its verdicts, its brake heat and its time series.
+
+    A run pickles (a process pool, joblib or Dask can return it) and comes back equal in
+    every result field, arrays bit for bit; the live simulator is not carried
+    (``simulator`` is None after unpickling: run again to go on).
 
     Attributes
     ----------
@@ -389,14 +460,54 @@ class RunResult:
     verdicts : Verdicts
         The judgments on the run (:mod:`ltd_brake_ros.verdicts`).
     timeseries : TimeSeries
-    simulator : Simulator
-        The simulator at the end of the run (for further queries or to go on).
+        The histories, sampled every ``sample_s`` from t = 0.
+    simulator : Simulator or None
+        The simulator at the end of the run (for further queries or to go on); None in a
+        copy that was pickled.
+    brake_heat : Peaks or None
+        The hottest brake blocks and wheels: ``block_K``, ``wheel_K`` [K], which vehicle and
+        when [s], the air's ``ambient_K``
+        (:class:`~ltd_brake_ros.physics.brakes.thermal.Peaks`; NaN without block brakes).
+
+    Examples
+    --------
+    >>> run = emergency_stop(load_consist("scenario_6"), 100.0)  # doctest: +SKIP
+    >>> run.brake_heat.block_K - 273.15                          # doctest: +SKIP
     """
 
     summary: StopResult | None
     verdicts: Verdicts
     timeseries: TimeSeries
-    simulator: Simulator
+    simulator: Simulator | None = field(default=None, compare=False)
+    brake_heat: Any = None
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["simulator"] = None  # compiled kernels and live state do not travel
+        return state
+
+    def __eq__(self, other) -> bool:
+        """Equal in every result field (arrays bit for bit; the simulator aside)."""
+        return isinstance(other, RunResult) and all(
+            _equal(getattr(self, k), getattr(other, k))
+            for k in ("summary", "verdicts", "timeseries", "brake_heat"))
+
+    __hash__ = None
+
+    def __repr__(self) -> str:
+        s = self.summary
+        head = repr(s) if s is not None else "the train did not stop"
+        heat = "" if self.brake_heat is None or not np.isfinite(self.brake_heat.block_K) else \
+            f"; hottest blocks {self.brake_heat.block_K - 273.15:.0f} C"
+        return (f"RunResult({head}; verdicts {self.verdicts.status}{heat}; "
+                f"{self.timeseries.time_s.size} samples)")
+
+    def _repr_html_(self) -> str:
+        parts = [f"<b>RunResult</b>: verdicts {self.verdicts.status}"]
+        if self.summary is not None:
+            parts.append(self.summary._repr_html_())
+        parts.append(self.verdicts._repr_html_())
+        return "".join(parts)
 
     def to_dataframe(self, element: str | None = "vehicle"):
         """:meth:`TimeSeries.to_dataframe` of the run."""
@@ -470,7 +581,8 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
                         tolerance_m_s=tolerance_m_s, chunk_s=sample_s, max_time_s=max_time_s,
                         on_chunk=sampler, on_start=sampler.start)
     summary = summarize(sim, time.perf_counter() - start)
-    return RunResult(summary, sim.verdicts(), sampler.series(sim, _attrs(sim, speed_kmh)), sim)
+    return RunResult(summary, sim.verdicts(), sampler.series(sim, _attrs(sim, speed_kmh)), sim,
+                     sim.brake_temperatures())
 
 
 def run_commands(consist: Consist, speed_kmh: float, commands, *,
@@ -507,7 +619,8 @@ def run_commands(consist: Consist, speed_kmh: float, commands, *,
                        on_chunk=sampler, on_start=sampler.start)
     wall = time.perf_counter() - start
     summary = summarize(sim, wall) if sim.stopping_distance_m is not None else None
-    return RunResult(summary, sim.verdicts(), sampler.series(sim, _attrs(sim, speed_kmh)), sim)
+    return RunResult(summary, sim.verdicts(), sampler.series(sim, _attrs(sim, speed_kmh)), sim,
+                     sim.brake_temperatures())
 
 
 # --------------------------------------------------------------------------- recordings
@@ -527,6 +640,31 @@ class Recording:
 
     report: Any
     timeseries: TimeSeries
+
+    def __repr__(self) -> str:
+        r = self.report
+        stop = "no stop" if r.stopping_distance_m is None else \
+            f"stopping distance {r.stopping_distance_m:.1f} m"
+        return (f"Recording({r.source!r}: {stop}, peak draft {r.peak_draft_kN:.1f} kN, buff "
+                f"{r.peak_buff_kN:.1f} kN, verdicts {r.verdicts.status}; "
+                f"{self.timeseries.time_s.size} samples)")
+
+    def _repr_html_(self) -> str:
+        from ._display import html_table, number
+
+        r = self.report
+        rows = [(k, number(getattr(r, k))) for k in (
+            "stopping_distance_m", "stopping_time_s", "command_speed_kmh", "peak_draft_kN",
+            "peak_draft_coupler", "peak_buff_kN", "peak_buff_coupler", "n_vehicles")]
+        return html_table(f"Recording {r.source}", rows, ["field", "value"]) + \
+            r.verdicts._repr_html_()
+
+    def __eq__(self, other) -> bool:
+        """Equal report and time series (arrays bit for bit, NaN equal to NaN)."""
+        return isinstance(other, Recording) and self.timeseries == other.timeseries and \
+            _equal(self.report, other.report)
+
+    __hash__ = None
 
     def to_dataframe(self, element: str | None = "vehicle"):
         """:meth:`TimeSeries.to_dataframe` of the recording."""
@@ -562,6 +700,8 @@ def read_recording(path: str | os.PathLike, namespace: str | None = None) -> Rec
     names = {"vehicles/speed": "speed_m_s", "vehicles/position": "position_m",
              "vehicles/brake_force": "brake_force_N",
              "vehicles/traction_force": "traction_force_N",
+             "vehicles/block_temperature": "block_temperature_K",
+             "vehicles/wheel_temperature": "wheel_temperature_K",
              "couplers/force": "coupler_force_N"}
     rows: dict[int, dict] = {}  # by the stamp [ns]
     for name, t, _log, value in plant_samples(path, report.namespace, report.stamped):
@@ -620,69 +760,94 @@ def load_campaign(source: str | os.PathLike | Mapping):
 
 
 def run_campaign(campaign, out: str | os.PathLike, *, jobs: int | None = None,
-                 dask: str | None = None, progress: bool = False):
-    """Run a campaign into a results folder (resumes what is missing).
+                 dask: str | None = None, progress: bool = True):
+    """Run a campaign into a results folder (resumes what is missing) and read its results.
 
     Parameters
     ----------
     campaign : Campaign, path-like or mapping
         See :func:`load_campaign`.
     out : str or path-like
-        Results folder (Parquet batches and a manifest).
+        Results folder (Parquet batches and a manifest); an existing one must hold the same
+        campaign (it is completed, never mixed).
     jobs : int, optional
-        Worker processes (default: all cores).
+        Worker processes (default: all cores; 1: in this process).
     dask : str, optional
         ``local:N`` or a scheduler address ``tcp://host:8786``.
     progress : bool, optional
-        Show a progress bar on stderr.
+        Show a progress bar (``tqdm.auto``: a widget in a notebook, text on stderr
+        elsewhere).
 
     Returns
     -------
-    pyarrow.Table
-        Every row of the results folder.
+    CampaignResults
+        Every row of the folder and the report's statistics
+        (:class:`~ltd_brake_ros.analysis.campaign_results.CampaignResults`).
+
+    Raises
+    ------
+    InputError
+        A bad campaign, or a folder of another campaign.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_campaign, run_campaign
+    >>> res = run_campaign(load_campaign("campaigns/example.yaml"), "runs/example", jobs=2)  # doctest: +SKIP
+    >>> res.quantiles(kpi="peak_buff_kN")                                                  # doctest: +SKIP
     """
-    from .studies.campaign_exec import make_executor, read_results
+    from .studies.campaign_exec import make_executor, missing_batches, prepare_folder
     from .studies.campaign_exec import run_campaign as _run
 
     c = campaign if hasattr(campaign, "families") else load_campaign(campaign)
+    prepare_folder(c, out, create=False)  # another campaign's folder: one line, no worker
     bar = None
     if progress:
-        from tqdm import tqdm
+        from tqdm.auto import tqdm
 
-        bar = tqdm(total=c.runs * len(c.manoeuvres), unit="run", desc=c.name)
-    with make_executor(jobs, dask) as executor:
-        _run(c, out, executor, progress=(lambda runs, failed: bar.update(runs)) if bar
-             else None)
-    if bar is not None:
-        bar.close()
-    return read_results(out)[1]
+        todo = missing_batches(c, out)
+        left = sum(min(c.batch_size, c.runs - b * c.batch_size) for b in todo)
+        per_train = len(c.manoeuvres)
+        bar = tqdm(total=c.runs * per_train, initial=(c.runs - left) * per_train, unit="run",
+                   desc=c.name)
+    try:
+        with make_executor(jobs, dask) as executor:
+            _run(c, out, executor, progress=(lambda runs, failed: bar.update(runs)) if bar
+                 else None)
+    finally:
+        if bar is not None:
+            bar.close()
+    return read_campaign(out)
 
 
 def read_campaign(out: str | os.PathLike):
-    """The results of a campaign folder as a pandas DataFrame (one row per train and
-    manoeuvre; units of each column in ``df.attrs["units"]`` where the files state them).
+    """The results of a campaign folder, as an object with the report's statistics.
 
     Parameters
     ----------
     out : str or path-like
+        A results folder of :func:`run_campaign` or ``ltd-brake campaign run``.
 
     Returns
     -------
-    pandas.DataFrame
-    """
-    from .studies.campaign_exec import read_results
+    CampaignResults
+        ``to_dataframe()`` (one row per train and manoeuvre, units in ``df.attrs["units"]``),
+        ``quantiles()``, ``exceedance_curve()``, ``exceedance()``, ``compare()`` (the
+        relative approach), ``sensitivity()``, ``report()``, ``to_html()``
+        (:class:`~ltd_brake_ros.analysis.campaign_results.CampaignResults`).
 
-    _optional("pandas")
-    table = read_results(out)[1]
-    df = table.to_pandas()
-    meta = table.schema.metadata or {}
-    units = {}
-    for f in table.schema:
-        m = f.metadata or {}
-        if b"unit" in m:
-            units[f.name] = m[b"unit"].decode()
-    df.attrs["units"] = units
-    if meta:
-        df.attrs["schema"] = {k.decode(): v.decode(errors="replace") for k, v in meta.items()
-                              if not k.startswith(b"pandas") and not k.startswith(b"ARROW")}
-    return df
+    Raises
+    ------
+    InputError
+        Not a results folder, or a damaged batch file.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import read_campaign
+    >>> res = read_campaign("runs/example")                        # doctest: +SKIP
+    >>> df = res.to_dataframe()                                    # doctest: +SKIP
+    >>> res.compare(read_campaign("runs/reference"), quantile=0.9).outcome  # doctest: +SKIP
+    'not worse'
+    """
+    from .analysis.campaign_results import CampaignResults
+
+    return CampaignResults(out)

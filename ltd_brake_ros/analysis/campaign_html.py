@@ -369,7 +369,7 @@ def html_report(rep: dict, table=None, ref_table=None) -> str:
             "</body>\n</html>\n")
 
 
-def write_html(rep: dict, path, *, against=None) -> str:
+def write_html(rep: dict, path, *, family=None, against=None) -> str:
     """Write the report to one self-contained HTML file.
 
     Parameters
@@ -378,18 +378,20 @@ def write_html(rep: dict, path, *, against=None) -> str:
         From :func:`~ltd_brake_ros.analysis.campaign_report.campaign_report`.
     path : path-like
         The file (replaced if it exists: the caller decides whether it may be).
-    against : path-like, optional
-        The reference's results folder (its exceedance curves beside the family's).
+    family : path-like or CampaignResults, optional
+        The family's results (default: read from ``rep["folder"]``).
+    against : path-like or CampaignResults, optional
+        The reference's results (its exceedance curves beside the family's).
 
     Returns
     -------
     str
         The path written.
     """
-    from ..studies.campaign_exec import read_results
+    from .campaign_report import results_of
 
-    table = read_results(rep["folder"])[1]
-    ref_table = read_results(against)[1] if against is not None else None
+    table = results_of(family if family is not None else rep["folder"])[2]
+    ref_table = results_of(against)[2] if against is not None else None
     text = html_report(rep, table, ref_table)
     Path(path).write_text(text, encoding="utf-8")
     return str(path)

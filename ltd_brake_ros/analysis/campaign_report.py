@@ -293,11 +293,12 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
 
     Parameters
     ----------
-    folder : path-like
-        Results folder of ``ltd-brake campaign run``.
-    against : path-like, optional
-        Results folder of the reference family (relative approach, for the manoeuvres of the
-        same name).
+    folder : path-like or CampaignResults
+        Results folder of ``ltd-brake campaign run``, or its results already read
+        (:class:`~ltd_brake_ros.analysis.campaign_results.CampaignResults`).
+    against : path-like or CampaignResults, optional
+        Results of the reference family (relative approach, for the manoeuvres of the same
+        name).
     thresholds : dict, optional
         KPI -> value in the KPI's unit: the probability of going beyond it in the KPI's worse
         direction (Wilson interval).
@@ -344,7 +345,7 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
         on which no deciding KPI can be compared.
     """
     deciding = parse_kpis(list(kpis) if kpis else None)
-    meta, table = read_results(folder)
+    folder, meta, table = results_of(folder)
     status = np.array(table["status"].to_pylist())
     rep: dict = {"name": meta.get("name", str(folder)), "folder": str(folder),
                  "runs": table.num_rows,
@@ -362,7 +363,7 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
     names = meta.get("manoeuvres") or sorted(set(table["manoeuvre"].to_pylist()))
     ref_table = None
     if against is not None:
-        ref_meta, ref_table = read_results(against)
+        against, ref_meta, ref_table = results_of(against)
         rep["reference"] = ref_meta.get("name", str(against))
         ref_names = set(ref_table["manoeuvre"].to_pylist())
         common = [n for n in names if n in ref_names]
@@ -421,6 +422,15 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
         rep["outcome"] = ("worse" if "worse" in verdicts else
                           "not worse" if verdicts == {"not worse"} else "inconclusive")
     return rep
+
+
+def results_of(source) -> tuple[str, dict, pa.Table]:
+    """The folder, manifest and rows of a results folder, or of results already read (an
+    object with ``folder``, ``manifest`` and ``table``)."""
+    if all(hasattr(source, k) for k in ("folder", "manifest", "table")):
+        return str(source.folder), source.manifest, source.table
+    meta, table = read_results(source)
+    return str(source), meta, table
 
 
 def exit_status(rep: dict) -> int:

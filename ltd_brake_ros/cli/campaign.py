@@ -251,21 +251,15 @@ def rerun(args: argparse.Namespace) -> int:
 
 def report(args: argparse.Namespace) -> int:
     """Print the campaign report; with ``--against``, 0 every deciding KPI not worse, 1 one
-    worse, 4 otherwise (inconclusive)."""
+    worse, 4 otherwise (inconclusive). The report is the Python API's
+    (:class:`~ltd_brake_ros.analysis.campaign_results.CampaignResults`)."""
     _require_extra()
-    import math
-
-    from ..analysis.campaign_report import (as_json, campaign_report, exit_status,
-                                            format_report, parse_kpis, parse_thresholds)
+    from ..analysis.campaign_report import as_json, exit_status, format_report, parse_kpis
+    from ..analysis.campaign_report import parse_thresholds
+    from ..analysis.campaign_results import CampaignResults, check_options
     from ..inputs import InputError
 
-    if not 0.0 < args.quantile < 1.0:
-        raise InputError("--quantile", "", f"must be between 0 and 1, got {args.quantile}")
-    if not 0.5 <= args.confidence < 1.0:
-        raise InputError("--confidence", "", f"must be in [0.5, 1), got {args.confidence}")
-    if not (math.isfinite(args.margin) and 0.0 <= args.margin < 1.0):
-        raise InputError("--margin", "", f"must be in [0, 1) (a share of the reference's "
-                         f"quantile, 0.05 = 5 %), got {args.margin}")
+    check_options(quantile=args.quantile, confidence=args.confidence, margin=args.margin)
     positive_int(args.worst, "--worst")
     kpis = parse_kpis(args.kpi)
     if (args.kpi or args.independent) and args.against is None:
@@ -275,14 +269,16 @@ def report(args: argparse.Namespace) -> int:
         raise InputError("--force", "", "applies to --html FILE")
     if args.html is not None:  # refused before the report is computed
         check_output_file(args.html, "--html", force=args.force)
-    rep = campaign_report(args.dir, against=args.against,
-                          thresholds=parse_thresholds(args.threshold), quantile=args.quantile,
-                          confidence=args.confidence, margin=args.margin, kpis=kpis,
-                          independent=args.independent, worst=args.worst, plots=args.plots)
+    family = CampaignResults(args.dir)
+    against = CampaignResults(args.against) if args.against is not None else None
+    rep = family.report(against=against, thresholds=parse_thresholds(args.threshold),
+                        quantile=args.quantile, confidence=args.confidence, margin=args.margin,
+                        kpis=kpis, independent=args.independent, worst=args.worst,
+                        plots=args.plots)
     if args.html is not None:
         from ..analysis.campaign_html import write_html
 
-        rep["html"] = write_html(rep, args.html, against=args.against)
+        rep["html"] = write_html(rep, args.html, family=family, against=against)
     print(as_json(rep) if args.json else format_report(rep))
     if args.html is not None and not args.json:
         print(f"html: {args.html}")

@@ -219,6 +219,31 @@ class Consist:
         """Total weight on rails [kg]."""
         return sum(v.mass_kg for v in self.vehicles)
 
+    def _groups(self) -> list:
+        from .._display import groups
+
+        return groups(self.vehicles)
+
+    def __repr__(self) -> str:
+        parts = [f"{k} x {v.name}" if k > 1 else v.name for v, k in self._groups()]
+        shown = " + ".join(parts[:6]) + (f" + ... ({len(parts) - 6} more groups)"
+                                         if len(parts) > 6 else "")
+        return (f"Consist({self.name!r}: {self.n} vehicles, {self.length_m:.1f} m, "
+                f"{self.mass_kg / 1e3:.0f} t: {shown})")
+
+    def _repr_html_(self) -> str:
+        from .._display import html_table, number
+
+        rows = [(k, v.name, number(v.mass_kg / 1e3, ".1f"), v.axles,
+                 number(v.mass_kg / 1e3 / v.axles, ".2f"), v.brake_position,
+                 "none" if v.brake is None else v.brake.type,
+                 number(v.braked_weight_t, ".1f"))
+                for v, k in self._groups()[:30]]
+        return html_table(f"Consist {self.name}: {self.n} vehicles, {self.length_m:.1f} m, "
+                          f"{self.mass_kg / 1e3:.0f} t (head first)", rows,
+                          ["count", "type", "mass [t]", "axles", "axle load [t]",
+                           "brake position", "brake", "braked weight [t]"])
+
 
 _VEHICLE_FIELDS = {"type", "count", "description", "mass_t", "length_m", "axles",
                    "inertia_factor", "brake", "brake_position", "traction", "limits"}

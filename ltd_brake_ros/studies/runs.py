@@ -66,6 +66,19 @@ class StopResult:
     smallest_step_s: float
     out_of_range: CouplerExcursions
 
+    def __repr__(self) -> str:
+        return (f"StopResult({self.consist}: {self.stopping_distance_m:.1f} m in "
+                f"{self.stop_time_s:.2f} s from {self.initial_speed_kmh:g} km/h; peak draft "
+                f"{self.peak_draft_kN:.1f} kN @{self.peak_draft_coupler}, buff "
+                f"{self.peak_buff_kN:.1f} kN @{self.peak_buff_coupler}; {self.vehicles} "
+                "vehicles; every field: .as_dict())")
+
+    def _repr_html_(self) -> str:
+        from .._display import html_table, number
+
+        rows = [(k, number(v)) for k, v in self.as_dict().items() if not isinstance(v, dict)]
+        return html_table(f"StopResult {self.consist}", rows, ["field", "value"])
+
     def as_dict(self) -> dict:
         """Plain dict for JSON output."""
         # the fields as they are (numbers and text) but the nested summary: asdict's deep

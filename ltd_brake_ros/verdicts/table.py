@@ -240,6 +240,19 @@ class Verdicts:
                          "are not results")
         return lines
 
+    def __repr__(self) -> str:
+        return (f"Verdicts({self.status}: " + ", ".join(f"{c.name} {c.status or 'not assessed'}"
+                                                        for c in self.criteria)
+                + "; .describe() for the sources)")
+
+    def _repr_html_(self) -> str:
+        from .._display import html_table, number
+
+        rows = [(c.name, c.status or "not assessed", number(c.worst_value), c.worst_number,
+                 number(c.limit_min), c.origin) for c in self.criteria]
+        return html_table(f"Verdicts: {self.status}", rows,
+                          ["criterion", "status", "worst", "at", "limit (lowest)", "source"])
+
     def as_dict(self) -> dict:
         """JSON-serialisable."""
         return {"passed": self.passed, "status": self.status,

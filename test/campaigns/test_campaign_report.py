@@ -11,6 +11,7 @@ import pytest
 from campaign_helpers import write_campaign
 
 from ltd_brake_ros.analysis import campaign_report as report_module
+from ltd_brake_ros.analysis import campaign_results as results_module
 from ltd_brake_ros.analysis.campaign_intervals import TOO_FEW
 from ltd_brake_ros.analysis.campaign_report import campaign_report
 from ltd_brake_ros.cli.main import main
@@ -269,6 +270,7 @@ def test_failed_runs_are_counted_apart(service, monkeypatch, capsys):
                  peak_draft_kN=None, peak_buff_kN=None, max_adhesion_demand=None)
     damaged = pa.Table.from_pylist(rows, schema=table.schema)
     monkeypatch.setattr(report_module, "read_results", lambda folder: (meta, damaged))
+    monkeypatch.setattr(results_module, "read_results", lambda folder: (meta, damaged))
     stop = _column(service, "stopping_distance_m")
     stopped = int(np.isfinite(stop[3:]).sum())
     no_stop = 97 - stopped
