@@ -72,6 +72,16 @@ _SIGN = ("vehicle 0 is the head; coupler j joins vehicles j-1 and j; coupler for
 # --------------------------------------------------------------------------- inputs
 
 
+def _warn_axle_loads(consist: Consist) -> None:
+    """A :class:`UserWarning` per group of vehicles too heavy for a line category."""
+    import warnings
+
+    from .inputs.consist import axle_load_warnings
+
+    for line in axle_load_warnings(consist):
+        warnings.warn(f"{consist.name}: {line}", UserWarning, stacklevel=3)
+
+
 def load_consist(source: str | int | os.PathLike | Mapping) -> Consist:
     """A train: a consist file, a paper scenario's train, or a mapping.
 
@@ -90,12 +100,29 @@ def load_consist(source: str | int | os.PathLike | Mapping) -> Consist:
     ------
     InputError
         Naming the file or scenario, the field and the reason.
+
+    Warns
+    -----
+    UserWarning
+        A vehicle whose axle load needs a category E line (above 22.5 t) or exceeds every
+        EN 15528 line category (above 25 t), naming it.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_consist
+    >>> load_consist("scenario_6")  # doctest: +SKIP
+    Consist('E402B + 32 Shimmns (50 t)': 33 vehicles, 423.9 m, 1689 t: E402B + 32 x Shimmns)
+    >>> load_consist({"vehicles": [{"type": "E402B"}, {"type": "Shimmns", "count": 3}]}).n  # doctest: +SKIP
+    4
     """
     if isinstance(source, Mapping):
-        return consist_from_mapping(source, "consist mapping")
-    if isinstance(source, int) or (isinstance(source, str) and not looks_like_file(source)):
-        return get_scenario(source).consist()
-    return _load_consist(source)
+        out = consist_from_mapping(source, "consist mapping")
+    elif isinstance(source, int) or (isinstance(source, str) and not looks_like_file(source)):
+        out = get_scenario(source).consist()
+    else:
+        out = _load_consist(source)
+    _warn_axle_loads(out)
+    return out
 
 
 def load_brake_params(source: str | os.PathLike | None = None) -> BrakeParams:
@@ -104,11 +131,25 @@ def load_brake_params(source: str | os.PathLike | None = None) -> BrakeParams:
     Parameters
     ----------
     source : str or path-like, optional
-        A brake-parameter YAML file, e.g. ``brake_params/uic_brake_pipe.yaml``.
+        A brake-parameter YAML file, e.g. ``brake_params/uic_brake_pipe.yaml`` (relative
+        names are also looked up in the shipped ``config/``).
 
     Returns
     -------
     BrakeParams
+        The brake model's parameters (``pneumatic``: delays [s], fill time [s], ...;
+        ``friction``: the block friction's k factor and laws; the thermal fields).
+
+    Raises
+    ------
+    InputError
+        Naming the file, the field and the reason.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_brake_params
+    >>> paper = load_brake_params()
+    >>> pipe = load_brake_params("brake_params/uic_brake_pipe.yaml")  # doctest: +SKIP
     """
     return _load_brake_params(source)
 
@@ -124,6 +165,20 @@ def load_coupler(source: str | os.PathLike | None = None) -> CouplerLUT:
     Returns
     -------
     CouplerLUT
+        Its model's parameters (for the default table: deflections [m], loading and unloading
+        forces [N], strengths [N]).
+
+    Raises
+    ------
+    InputError
+        Naming the file, the field and the reason.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_coupler
+    >>> lut = load_coupler("couplers/buffer_hook_pugi.yaml")
+    >>> lut.draft_strength_N > 0
+    True
     """
     return load_coupler_lut(source)
 
@@ -134,11 +189,22 @@ def load_track(source: str | os.PathLike | None = None) -> Track:
     Parameters
     ----------
     source : str or path-like, optional
-        A track YAML file, e.g. ``tracks/hump_10permille.yaml``.
+        A track YAML file, e.g. ``tracks/hump_10permille.yaml``; None: level straight track.
 
     Returns
     -------
     Track
+        Gradients [permille] and curves [m radius] by chainage [m].
+
+    Raises
+    ------
+    InputError
+        Naming the file, the field and the reason.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_track
+    >>> hump = load_track("tracks/hump_10permille.yaml")  # doctest: +SKIP
     """
     return Track() if source is None else _load_track(source)
 
@@ -149,11 +215,24 @@ def load_commands(source: str | os.PathLike | Mapping | Sequence) -> CommandScri
     Parameters
     ----------
     source : str, path-like, mapping or sequence
-        E.g. ``[{"t_s": 0, "brake_demand": 0.5}, {"t_s": 20, "emergency": True}]``.
+        E.g. ``[{"t_s": 0, "brake_demand": 0.5}, {"t_s": 20, "emergency": True}]``: times
+        [s], brake and traction demands [-, 0 to 1], the emergency brake (true/false).
 
     Returns
     -------
     CommandScript
+        The timed steps, in time order.
+
+    Raises
+    ------
+    InputError
+        Naming the file or entry (``commands[0]``), the field and the reason.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_commands
+    >>> load_commands([{"t_s": 0, "brake_demand": 0.5}, {"t_s": 20, "emergency": True}]).steps[1]
+    (20.0, {'emergency': True})
     """
     if isinstance(source, Mapping):
         return command_script_from_mapping(source, "commands mapping")
@@ -181,6 +260,14 @@ class TimeSeries:
         Type name of each vehicle, head first.
     attrs : dict
         Run information (consist, initial speed, ...).
+
+    Examples
+    --------
+    >>> ts = emergency_stop("scenario_6", 100.0).timeseries  # doctest: +SKIP
+    >>> ts.time_s[:3]                                         # doctest: +SKIP
+    array([0. , 0.1, 0.2])
+    >>> ts.vehicles["speed_m_s"].shape                        # doctest: +SKIP
+    (289, 33)
     """
 
     time_s: np.ndarray
@@ -534,6 +621,36 @@ def _announce_compile(**simulator_kwargs) -> None:
         say(notice)
 
 
+def _train(consist) -> Consist:
+    """A :class:`Consist`, or what :func:`load_consist` loads one from (a scenario name or
+    number, a consist file, a mapping); anything else is one line."""
+    if isinstance(consist, (str, int, os.PathLike, Mapping)) and not isinstance(consist, bool):
+        consist = load_consist(consist)
+    if isinstance(consist, Consist):
+        _warn_axle_loads(consist)
+        return consist
+    raise InputError("consist", "", f"expected a Consist (load_consist(...)), a scenario, a "
+                     f"consist file or a mapping, got {type(consist).__name__}")
+
+
+def _speed(speed_kmh, *, at_rest: bool) -> float:
+    """The initial speed [km/h], checked: finite, 0 to 400, above 0 for a stop from speed."""
+    from .run_spec import SPEED_RANGE_KMH
+
+    lo, hi = SPEED_RANGE_KMH
+    try:
+        v = float(speed_kmh)
+    except (TypeError, ValueError):
+        raise InputError("speed_kmh", "", f"must be a number of km/h, got {speed_kmh!r}") \
+            from None
+    if not (math.isfinite(v) and lo <= v <= hi):
+        raise InputError("speed_kmh", "", f"must be between {lo:g} and {hi:g} km/h, got {v:g}")
+    if v == 0.0 and not at_rest:
+        raise InputError("speed_kmh", "", "an emergency stop needs a speed above 0 km/h "
+                         "(run_commands may start at rest)")
+    return v
+
+
 def _attrs(sim: Simulator, speed_kmh: float) -> dict:
     return {"consist": sim.consist.name, "initial_speed_kmh": float(speed_kmh),
             "step_s": sim.step_s, "tolerance_m_s": float(sim.tolerance_m_s)}
@@ -548,10 +665,11 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
 
     Parameters
     ----------
-    consist : Consist
-        E.g. :func:`load_consist` ``("scenario_6")``.
+    consist : Consist, str, int, path-like or mapping
+        The train: a :class:`Consist`, or what :func:`load_consist` loads one from
+        (``"scenario_6"``, ``6``, a consist file, a mapping).
     speed_kmh : float
-        Initial speed [km/h].
+        Initial speed [km/h], above 0 and at most 400.
     params, coupler, track : optional
         Model inputs (defaults: :func:`load_brake_params`, :func:`load_coupler`, level track).
     sample_s : float, optional
@@ -570,9 +688,19 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
 
     Raises
     ------
+    InputError
+        A consist that cannot be loaded, a speed that is not a finite number above 0.
     SimulationError
         A step failed, or the train did not stop within ``max_time_s``.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import emergency_stop
+    >>> run = emergency_stop("scenario_6", 100.0)  # doctest: +SKIP
+    >>> run.summary.stopping_distance_m            # doctest: +SKIP
+    489.2
     """
+    consist, speed_kmh = _train(consist), _speed(speed_kmh, at_rest=False)
     _announce_compile(consist=consist, speed_kmh=speed_kmh, params=params, lut=coupler,
                       track=track, step_s=step_s, tolerance_m_s=tolerance_m_s)
     sampler = _Sampler()
@@ -594,9 +722,10 @@ def run_commands(consist: Consist, speed_kmh: float, commands, *,
 
     Parameters
     ----------
-    consist : Consist
+    consist : Consist, str, int, path-like or mapping
+        As for :func:`emergency_stop`.
     speed_kmh : float
-        Initial speed [km/h].
+        Initial speed [km/h], 0 (at rest) to 400.
     commands : CommandScript, path-like, mapping or list
         See :func:`load_commands`; the commands change at sample boundaries.
     params, coupler, track, sample_s, step_s, tolerance_m_s : optional
@@ -608,7 +737,20 @@ def run_commands(consist: Consist, speed_kmh: float, commands, *,
     -------
     RunResult
         ``summary`` is None when the train did not stop.
+
+    Raises
+    ------
+    InputError
+        A consist or script that cannot be loaded, a speed that is not finite or is negative.
+    SimulationError
+        A step failed.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import run_commands
+    >>> run = run_commands("scenario_1", 0.0, [{"t_s": 0, "traction": 0.5}], max_time_s=60)  # doctest: +SKIP
     """
+    consist, speed_kmh = _train(consist), _speed(speed_kmh, at_rest=True)
     script = commands if isinstance(commands, CommandScript) else load_commands(commands)
     _announce_compile(consist=consist, speed_kmh=speed_kmh, params=params, lut=coupler,
                       track=track, step_s=step_s, tolerance_m_s=tolerance_m_s)
@@ -636,6 +778,11 @@ class Recording:
         Stopping distance, peaks, verdicts, brake pipe (:mod:`ltd_brake_ros.analysis.report`).
     timeseries : TimeSeries
         The recorded arrays (the quantities the recording holds).
+
+    Examples
+    --------
+    >>> rec = read_recording("runs/demo_20261203-101500")  # doctest: +SKIP
+    >>> rec.report.stopping_distance_m, rec.report.verdicts.status  # doctest: +SKIP
     """
 
     report: Any
@@ -681,17 +828,26 @@ def read_recording(path: str | os.PathLike, namespace: str | None = None) -> Rec
     Parameters
     ----------
     path : str or path-like
+        The recording's folder or ``.mcap`` file (an unfinished one is read to its last
+        complete chunk).
     namespace : str, optional
         Namespace of the plant's topics (default: the first that holds them).
 
     Returns
     -------
     Recording
+        Its report and time series (sample times on the nanosecond stamps of the recording).
 
     Raises
     ------
     BagError
         The recording cannot be read or holds no plant state.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import read_recording
+    >>> rec = read_recording("runs/demo_20261203-101500")  # doctest: +SKIP
+    >>> rec.to_dataframe("coupler").coupler_force_N.max()   # doctest: +SKIP
     """
     from .analysis.report import analyse
     from .analysis.samples import ARRAYS, plant_samples
@@ -747,15 +903,25 @@ def load_campaign(source: str | os.PathLike | Mapping):
     Returns
     -------
     Campaign
+        The validated campaign (its families, variants, uncertainties, manoeuvres, seed and
+        size).
+
+    Raises
+    ------
+    InputError
+        Naming the file or mapping, the field and the reason.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_campaign
+    >>> c = load_campaign("campaigns/example.yaml")
+    >>> c.runs > 0 and c.seed >= 0
+    True
     """
     from .inputs.campaign import campaign_from_mapping, load_campaign as _load
 
     if isinstance(source, Mapping):
-        import hashlib
-
-        text = json.dumps(source, sort_keys=True, default=str)
-        return campaign_from_mapping(dict(source), "campaign mapping",
-                                     hashlib.sha256(text.encode()).hexdigest())
+        return campaign_from_mapping(dict(source), "campaign mapping")
     return _load(source)
 
 

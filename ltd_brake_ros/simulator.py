@@ -227,6 +227,14 @@ class Simulator:
         Strength and adhesion limits of the train (consist ``limits``, the coupler model's,
         the standard defaults: :func:`~ltd_brake_ros.verdicts.train_limits`); an event is
         raised when one is first exceeded, :meth:`verdicts` tells all.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import Commands, Simulator, load_brake_params, load_consist, load_coupler
+    >>> sim = Simulator(load_consist("scenario_1"), 60.0, load_brake_params(), load_coupler())  # doctest: +SKIP
+    >>> snap = sim.advance(1.0, Commands(emergency=True))  # doctest: +SKIP
+    >>> snap.speed_m_s[0] < 60 / 3.6                        # doctest: +SKIP
+    True
     """
 
     def __init__(self, consist: Consist, speed_kmh: float, params: BrakeParams | None = None,

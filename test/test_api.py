@@ -314,3 +314,47 @@ def test_displays_fit_a_screen(families):
     rate = (heat.block_K - heat.ambient_K) / heat.block_time_s  # [K/s]
     assert abs(np.nanmax(hot) - heat.block_K) <= rate * 1.0
     assert "block_temperature_K" in run.to_xarray()
+
+
+def test_typical_mistakes_are_one_line_or_taken_as_meant(capsys):
+    import warnings
+
+    from ltd_brake_ros.cli.main import main
+    from ltd_brake_ros.plant.run import load_plant_inputs
+
+    # a scenario's name where a Consist is expected is loaded; anything else is one line
+    by_name = api.emergency_stop("scenario_1", 30.0)
+    assert by_name.timeseries == api.emergency_stop(api.load_consist(1), 30.0).timeseries
+    with pytest.raises(InputError, match="^consist: expected a Consist"):
+        api.emergency_stop(3.5, 30.0)
+    # a speed is a finite number from 0 to 400 km/h, above 0 for a stop from speed
+    for speed in (-50.0, float("nan"), float("inf"), 401.0, 0.0, "fast"):
+        with pytest.raises(InputError, match="^speed_kmh: "):
+            api.emergency_stop("scenario_1", speed)
+    with pytest.raises(InputError, match="^speed_kmh: must be between 0 and 400"):
+        api.run_commands("scenario_1", -1.0, [{"t_s": 0.0, "traction": 0.2}], max_time_s=1.0)
+    at_rest = api.run_commands("scenario_1", 0.0, [{"t_s": 0.0, "traction": 0.3}],
+                               max_time_s=2.0)
+    assert at_rest.timeseries.vehicles["speed_m_s"][-1, 0] > 0.0  # starts at rest, moves off
+    for speed, words in (("-50", "must be between 0 and 400 km/h, got -50"),
+                         ("nan", "must be a finite number"),
+                         ("0", "an emergency stop needs a speed above 0 km/h")):
+        assert main(["simulate", "--scenario", "6", "--speed-kmh", speed]) == 2
+        err = capsys.readouterr().err
+        assert len(err.splitlines()) == 1 and "--speed-kmh" in err and words in err
+    # the plant's -1 still means the scenario's speed; other negatives are refused
+    assert load_plant_inputs("scenario_6", -1.0).speed_kmh == 100.0
+    with pytest.raises(Exception, match="initial_speed_kmh"):
+        load_plant_inputs("scenario_6", -5.0)
+    # a 102 t wagon on 4 axles: 25.5 t an axle, beyond every line category, named
+    heavy = {"vehicles": [{"type": "E402B"}, {"type": "Shimmns", "mass_t": 95.0},
+                          {"type": "Shimmns", "mass_t": 102.0}]}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        api.load_consist(heavy)
+    lines = [str(w.message) for w in caught]
+    assert len(lines) == 2
+    assert "vehicle 1 (Shimmns): axle load 23.8 t" in lines[0] and \
+        "needs a category E line" in lines[0]
+    assert "vehicle 2 (Shimmns): axle load 25.5 t" in lines[1] and \
+        "beyond every EN 15528 line category" in lines[1]

@@ -174,6 +174,9 @@ def run(args: argparse.Namespace) -> int:
     spec = run_spec(args)
     if args.commands:
         return _run_script(args, spec)
+    if spec.speed_kmh <= 0.0:  # a command script may start at rest; a stop needs a speed
+        raise InputError("command line", "--speed-kmh", "an emergency stop needs a speed above "
+                         "0 km/h (a run of --commands may start at rest)")
     params, lut = spec.params, spec.lut
     events = []
     sampler = _timeseries(args)

@@ -6,7 +6,8 @@ from ..verdicts import limits_metadata
 
 
 def model_warnings(sim) -> list[str]:
-    """Where the run of ``sim`` leaves its models' validated ranges (empty: inside them).
+    """Where the run of ``sim`` leaves its models' validated ranges, and vehicles too heavy
+    for a line category (empty: neither).
 
     Parameters
     ----------
@@ -16,9 +17,10 @@ def model_warnings(sim) -> list[str]:
     -------
     list of str
     """
+    from ..inputs.consist import axle_load_warnings
     from ..physics import brakes
 
-    return brakes.validity(sim.consist, sim.params)
+    return axle_load_warnings(sim.consist) + brakes.validity(sim.consist, sim.params)
 
 
 def run_metadata(sim, *, scenario=None, parameters: dict | None = None, **extra) -> dict:

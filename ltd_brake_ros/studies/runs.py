@@ -38,6 +38,69 @@ class StopResult:
     Coupler numbers count from 1 behind the head; buff forces are reported as negative values.
     ``couplers_beyond_lut`` and ``max_beyond_lut_mm`` head ``out_of_range``, the summary of
     the couplers that went beyond the coupler characteristic's range with the worst three.
+
+    Attributes
+    ----------
+    consist : str
+        The train's name.
+    vehicles : int
+        Vehicles in the train.
+    train_length_m : float
+        Length over buffers [m].
+    train_mass_t : float
+        Weight on rails [t].
+    braked_weight_percent : float
+        The train's braked-weight percentage lambda (Eq. 11) [%].
+    initial_speed_kmh : float
+        Speed at the start of the run [km/h].
+    stopping_distance_m : float
+        The head's travel from the brake command to the stop [m].
+    stop_time_s : float
+        Time from the brake command to the stop [s].
+    peak_draft_kN : float
+        Largest draft (tension) coupler force [kN], positive.
+    peak_draft_coupler : int
+        Coupler that had it (1 behind the head).
+    peak_draft_time_s : float
+        When [s] (simulated time since the start).
+    peak_buff_kN : float
+        Largest buff (compression) coupler force [kN], negative.
+    peak_buff_coupler : int
+        Coupler that had it.
+    peak_buff_time_s : float
+        When [s].
+    couplers_beyond_lut : int
+        Couplers that went beyond the range of their characteristic (their forces there are
+        extrapolated).
+    max_beyond_lut_mm : float
+        The largest such excursion [mm] (0 when none).
+    wall_time_s : float
+        Wall time of the run [s] (the run's cost; varies between machines and runs).
+    real_time_factor : float
+        Simulated time over wall time [-].
+    steps : int
+        Accepted integration steps.
+    newton_iterations : int
+        Newton iterations over the run.
+    newton_iterations_per_step : float
+        Their mean per step [-].
+    max_newton_iterations : int
+        The most in one step.
+    rejected_steps : int
+        Steps the error control rejected and retried shorter.
+    smallest_step_s : float
+        Shortest accepted step [s].
+    out_of_range : CouplerExcursions
+        The couplers beyond their characteristic's range, the worst three with when and how
+        far (:class:`~ltd_brake_ros.simulator.CouplerExcursions`).
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import emergency_stop
+    >>> s = emergency_stop("scenario_6", 100.0).summary  # doctest: +SKIP
+    >>> s.stopping_distance_m, s.peak_draft_kN, s.peak_draft_coupler  # doctest: +SKIP
+    (489.2..., 173.4..., 1)
+    >>> s.as_dict()["peak_buff_kN"]  # doctest: +SKIP
     """
 
     consist: str

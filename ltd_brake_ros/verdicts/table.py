@@ -207,6 +207,13 @@ class Verdicts:
     ----------
     criteria : tuple of Criterion
         In :data:`CRITERIA` order.
+
+    Examples
+    --------
+    >>> run = emergency_stop("scenario_6", 100.0)  # doctest: +SKIP
+    >>> run.verdicts.status, run.verdicts["draft_strength"].status  # doctest: +SKIP
+    ('PASS', 'PASS')
+    >>> print("\\n".join(run.verdicts.describe()))  # doctest: +SKIP
     """
 
     criteria: tuple

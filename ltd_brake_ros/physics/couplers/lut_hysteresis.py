@@ -60,6 +60,18 @@ class Params:
         Buff deflection of the interface at which the buffers go solid [m] (file:
         ``buff_travel_mm``; inf: the table's end): the valid range ends there, and a run
         beyond it is marked non-physical.
+    buff_scale, draft_scale : float
+        Scale of both curves in buff (deflection < 0) and in draft (deflection > 0) [-].
+    buff_hysteresis, draft_hysteresis : float
+        Scale of the gap between the loading and unloading curves in buff and in draft
+        (0: elastic) [-].
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_coupler
+    >>> lut = load_coupler("couplers/buffer_hook_pugi.yaml")
+    >>> lut.deflection_m[0] < 0.0 < lut.deflection_m[-1]
+    True
     """
 
     deflection_m: tuple[float, ...] = parameter(
