@@ -132,3 +132,19 @@ def test_sensitivity_bars_of_a_sobol_campaign(folders, tmp_path):
     assert "<th>ST interval</th>" in text and '<td class="l">wagons</td>' in text
     images = _images(text)
     assert len(images) == 2 and all(i.startswith(b"\x89PNG") for i in images)
+
+
+def test_sensitivity_indices_in_python_are_the_reports(folders, capsys):
+    import json
+
+    from ltd_brake_ros import read_campaign
+
+    res = read_campaign(folders["sobol"])
+    table = res.sensitivity()
+    assert set(table.input) == {"k0", "wagons"} and {"S1", "ST_low", "ST_high"} <= set(table)
+    assert main(["campaign", "report", str(folders["sobol"]), "--json"]) == 0
+    sens = json.loads(capsys.readouterr().out)["sensitivity"]["manoeuvres"][MANOEUVRE]
+    row = table[(table.kpi == "peak_draft_kN") & (table.input == "k0")].iloc[0]
+    assert row.S1 == pytest.approx(sens["peak_draft_kN"]["indices"]["k0"]["S1"])
+    assert [row.ST_low, row.ST_high] == pytest.approx(
+        sens["peak_draft_kN"]["indices"]["k0"]["ST_interval"])
