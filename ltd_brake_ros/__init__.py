@@ -34,6 +34,7 @@ _EXPORTS = {
     "read_recording": "api", "Recording": "api",
     # campaigns
     "load_campaign": "api", "run_campaign": "api", "read_campaign": "api",
+    "CampaignResults": "analysis.campaign_results", "Comparison": "analysis.campaign_results",
 }
 __all__ = sorted(_EXPORTS) + ["__version__"]
 
@@ -60,3 +61,4 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from .stops import StopRecord
     from .studies.runs import StopResult
     from .verdicts import Verdicts
+    from .analysis.campaign_results import CampaignResults, Comparison

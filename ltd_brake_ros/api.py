@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 import time
 from collections.abc import Mapping, Sequence
@@ -54,7 +55,12 @@ VEHICLE_QUANTITIES = {
     "brake_force_N": ("N", "air-brake retarding force, positive"),
     "traction_force_N": ("N", "traction (positive) or dynamic-brake (negative) force"),
     "block_force_N": ("N", "total force on the brake blocks or pads, F_B,tot"),
+    "block_temperature_K": ("K", "brake-block temperature, lumped (NaN: no block brakes)"),
+    "wheel_temperature_K": ("K", "wheel (tread and rim) temperature, lumped (NaN: no block "
+                                 "brakes)"),
 }
+#: Quantities a snapshot carries among its extras rather than as fields.
+_EXTRAS = ("block_temperature_K", "wheel_temperature_K")
 #: Per-coupler quantities of a time series: name -> (unit, description).
 COUPLER_QUANTITIES = {
     "coupler_force_N": ("N", "coupler force, draft (tension) positive, buff negative"),
@@ -64,6 +70,16 @@ _SIGN = ("vehicle 0 is the head; coupler j joins vehicles j-1 and j; coupler for
 
 
 # --------------------------------------------------------------------------- inputs
+
+
+def _warn_axle_loads(consist: Consist) -> None:
+    """A :class:`UserWarning` per group of vehicles too heavy for a line category."""
+    import warnings
+
+    from .inputs.consist import axle_load_warnings
+
+    for line in axle_load_warnings(consist):
+        warnings.warn(f"{consist.name}: {line}", UserWarning, stacklevel=3)
 
 
 def load_consist(source: str | int | os.PathLike | Mapping) -> Consist:
@@ -84,12 +100,29 @@ def load_consist(source: str | int | os.PathLike | Mapping) -> Consist:
     ------
     InputError
         Naming the file or scenario, the field and the reason.
+
+    Warns
+    -----
+    UserWarning
+        A vehicle whose axle load needs a category E line (above 22.5 t) or exceeds every
+        EN 15528 line category (above 25 t), naming it.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_consist
+    >>> load_consist("scenario_6")  # doctest: +SKIP
+    Consist('E402B + 32 Shimmns (50 t)': 33 vehicles, 423.9 m, 1689 t: E402B + 32 x Shimmns)
+    >>> load_consist({"vehicles": [{"type": "E402B"}, {"type": "Shimmns", "count": 3}]}).n  # doctest: +SKIP
+    4
     """
     if isinstance(source, Mapping):
-        return consist_from_mapping(source, "consist mapping")
-    if isinstance(source, int) or (isinstance(source, str) and not looks_like_file(source)):
-        return get_scenario(source).consist()
-    return _load_consist(source)
+        out = consist_from_mapping(source, "consist mapping")
+    elif isinstance(source, int) or (isinstance(source, str) and not looks_like_file(source)):
+        out = get_scenario(source).consist()
+    else:
+        out = _load_consist(source)
+    _warn_axle_loads(out)
+    return out
 
 
 def load_brake_params(source: str | os.PathLike | None = None) -> BrakeParams:
@@ -98,11 +131,25 @@ def load_brake_params(source: str | os.PathLike | None = None) -> BrakeParams:
     Parameters
     ----------
     source : str or path-like, optional
-        A brake-parameter YAML file, e.g. ``brake_params/uic_brake_pipe.yaml``.
+        A brake-parameter YAML file, e.g. ``brake_params/uic_brake_pipe.yaml`` (relative
+        names are also looked up in the shipped ``config/``).
 
     Returns
     -------
     BrakeParams
+        The brake model's parameters (``pneumatic``: delays [s], fill time [s], ...;
+        ``friction``: the block friction's k factor and laws; the thermal fields).
+
+    Raises
+    ------
+    InputError
+        Naming the file, the field and the reason.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_brake_params
+    >>> paper = load_brake_params()
+    >>> pipe = load_brake_params("brake_params/uic_brake_pipe.yaml")  # doctest: +SKIP
     """
     return _load_brake_params(source)
 
@@ -118,6 +165,20 @@ def load_coupler(source: str | os.PathLike | None = None) -> CouplerLUT:
     Returns
     -------
     CouplerLUT
+        Its model's parameters (for the default table: deflections [m], loading and unloading
+        forces [N], strengths [N]).
+
+    Raises
+    ------
+    InputError
+        Naming the file, the field and the reason.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_coupler
+    >>> lut = load_coupler("couplers/buffer_hook_pugi.yaml")
+    >>> lut.draft_strength_N > 0
+    True
     """
     return load_coupler_lut(source)
 
@@ -128,11 +189,22 @@ def load_track(source: str | os.PathLike | None = None) -> Track:
     Parameters
     ----------
     source : str or path-like, optional
-        A track YAML file, e.g. ``tracks/hump_10permille.yaml``.
+        A track YAML file, e.g. ``tracks/hump_10permille.yaml``; None: level straight track.
 
     Returns
     -------
     Track
+        Gradients [permille] and curves [m radius] by chainage [m].
+
+    Raises
+    ------
+    InputError
+        Naming the file, the field and the reason.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_track
+    >>> hump = load_track("tracks/hump_10permille.yaml")  # doctest: +SKIP
     """
     return Track() if source is None else _load_track(source)
 
@@ -143,11 +215,24 @@ def load_commands(source: str | os.PathLike | Mapping | Sequence) -> CommandScri
     Parameters
     ----------
     source : str, path-like, mapping or sequence
-        E.g. ``[{"t_s": 0, "brake_demand": 0.5}, {"t_s": 20, "emergency": True}]``.
+        E.g. ``[{"t_s": 0, "brake_demand": 0.5}, {"t_s": 20, "emergency": True}]``: times
+        [s], brake and traction demands [-, 0 to 1], the emergency brake (true/false).
 
     Returns
     -------
     CommandScript
+        The timed steps, in time order.
+
+    Raises
+    ------
+    InputError
+        Naming the file or entry (``commands[0]``), the field and the reason.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_commands
+    >>> load_commands([{"t_s": 0, "brake_demand": 0.5}, {"t_s": 20, "emergency": True}]).steps[1]
+    (20.0, {'emergency': True})
     """
     if isinstance(source, Mapping):
         return command_script_from_mapping(source, "commands mapping")
@@ -175,6 +260,14 @@ class TimeSeries:
         Type name of each vehicle, head first.
     attrs : dict
         Run information (consist, initial speed, ...).
+
+    Examples
+    --------
+    >>> ts = emergency_stop("scenario_6", 100.0).timeseries  # doctest: +SKIP
+    >>> ts.time_s[:3]                                         # doctest: +SKIP
+    array([0. , 0.1, 0.2])
+    >>> ts.vehicles["speed_m_s"].shape                        # doctest: +SKIP
+    (289, 33)
     """
 
     time_s: np.ndarray
@@ -187,6 +280,44 @@ class TimeSeries:
     def n_vehicles(self) -> int:
         """Vehicles in the train."""
         return next(iter(self.vehicles.values())).shape[1] if self.vehicles else 0
+
+    @property
+    def time_ns(self) -> np.ndarray:
+        """The sample times as whole nanoseconds (int64), the stamps of a recording [ns]."""
+        return np.round(self.time_s * 1e9).astype(np.int64)
+
+    def __eq__(self, other) -> bool:
+        """Equal names, attributes and arrays, bit for bit (NaN equal to NaN)."""
+        def same(a, b) -> bool:
+            a, b = np.asarray(a), np.asarray(b)
+            return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+
+        return (isinstance(other, TimeSeries) and same(self.time_s, other.time_s)
+                and self.vehicles.keys() == other.vehicles.keys()
+                and self.couplers.keys() == other.couplers.keys()
+                and all(same(a, other.vehicles[k]) for k, a in self.vehicles.items())
+                and all(same(a, other.couplers[k]) for k, a in self.couplers.items())
+                and list(self.vehicle_names) == list(other.vehicle_names)
+                and self.attrs == other.attrs)
+
+    __hash__ = None
+
+    def __repr__(self) -> str:
+        k, t = self.time_s.size, self.time_s
+        span = f"{t[0]:g}-{t[-1]:g} s" if k else "no samples"
+        every = f" every {t[1] - t[0]:.6g} s" if k > 1 else ""
+        return (f"TimeSeries({k} samples, {span}{every}; {self.n_vehicles} vehicles: "
+                f"{', '.join(self.vehicles)}; couplers: {', '.join(self.couplers)}; "
+                ".to_dataframe(), .to_xarray())")
+
+    def _repr_html_(self) -> str:
+        from ._display import html_table
+
+        units = {**VEHICLE_QUANTITIES, **COUPLER_QUANTITIES}
+        rows = [(name, units[name][0], "x".join(map(str, a.shape)), units[name][1])
+                for name, a in (*self.vehicles.items(), *self.couplers.items())]
+        return html_table(repr(self).split(";")[0], rows,
+                          ["quantity", "unit", "shape (time x element)", "meaning"])
 
     def _long(self) -> dict:
         """The long (tidy) columns: one row per time, element and quantity."""
@@ -325,6 +456,29 @@ class TimeSeries:
         raise InputError(str(p), "", "time series are written as .parquet or .csv")
 
 
+def _equal(a, b) -> bool:
+    """Equal results: dataclasses field by field, arrays bit for bit, NaN equal to NaN."""
+    import dataclasses
+
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, np.ndarray):
+        return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+    if isinstance(a, float):
+        return a == b or (math.isnan(a) and math.isnan(b))
+    if isinstance(a, (list, tuple)):
+        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b))
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
+    if dataclasses.is_dataclass(a) and not isinstance(a, (TimeSeries, RunResult)):
+        return all(_equal(getattr(a, f.name), getattr(b, f.name))
+                   for f in dataclasses.fields(a))
+    if hasattr(a, "__dict__") and not dataclasses.is_dataclass(a) and \
+            type(a).__eq__ is object.__eq__:
+        return _equal(vars(a), vars(b))
+    return bool(a == b)
+
+
 def _optional(name: str):
     try:
         return __import__(name)
@@ -333,23 +487,41 @@ def _optional(name: str):
                           "dependencies of ltd_brake_ros: reinstall it)") from None
 
 
+def _stamp_ns(time_s: float) -> int:
+    """A simulated time on the nanosecond grid [ns]: the stamp a recording gives the same
+    state (the simulator sums its steps in floating point, 0.1 s ten times being
+    0.9999999999999999 s)."""
+    return round(time_s * 1e9)
+
+
+def _seconds(stamps_ns) -> np.ndarray:
+    """Nanosecond stamps as seconds, each the float nearest to its exact value (a division,
+    correctly rounded: 300_000_000 ns is 0.3 as written)."""
+    return np.asarray(stamps_ns, np.int64) / 1e9
+
+
 class _Sampler:
-    """Collects snapshots into a :class:`TimeSeries`."""
+    """Collects snapshots into a :class:`TimeSeries`, the state at t = 0 first
+    (:meth:`start`)."""
 
     def __init__(self):
-        self.t: list[float] = []
+        self.t: list[int] = []
         self.v: dict[str, list] = {k: [] for k in VEHICLE_QUANTITIES}
         self.c: list = []
 
+    def start(self, sim: Simulator) -> None:
+        """Sample the state before the first chunk (t = 0)."""
+        self(sim.snapshot())
+
     def __call__(self, snap: Snapshot) -> None:
-        self.t.append(snap.time_s)
+        self.t.append(_stamp_ns(snap.time_s))
         for k, a in self.v.items():
-            a.append(np.array(getattr(snap, k), float))
+            a.append(np.array(snap.extras[k] if k in _EXTRAS else getattr(snap, k), float))
         self.c.append(np.array(snap.coupler_force_N, float))
 
     def series(self, sim: Simulator, attrs: dict) -> TimeSeries:
         n = sim.n
-        return TimeSeries(np.array(self.t, float),
+        return TimeSeries(_seconds(self.t),
                           {k: np.array(a, float).reshape(len(self.t), n)
                            for k, a in self.v.items()},
                           {"coupler_force_N": np.array(self.c, float).reshape(
@@ -362,7 +534,11 @@ class _Sampler:
 
 @dataclass
 class RunResult:
-    """A simulated run: its summary, its verdicts and its time series.
+    """A simulated run: its summary, its verdicts, its brake heat and its time series.
+
+    A run pickles (a process pool, joblib or Dask can return it) and comes back equal in
+    every result field, arrays bit for bit; the live simulator is not carried
+    (``simulator`` is None after unpickling: run again to go on).
 
     Attributes
     ----------
@@ -371,8 +547,14 @@ class RunResult:
     verdicts : Verdicts
         The judgments on the run (:mod:`ltd_brake_ros.verdicts`).
     timeseries : TimeSeries
-    simulator : Simulator
-        The simulator at the end of the run (for further queries or to go on).
+        The histories, sampled every ``sample_s`` from t = 0.
+    simulator : Simulator or None
+        The simulator at the end of the run (for further queries or to go on); None in a
+        copy that was pickled.
+    brake_heat : Peaks or None
+        The hottest brake blocks and wheels: ``block_K``, ``wheel_K`` [K], which vehicle and
+        when [s], the air's ``ambient_K``
+        (:class:`~ltd_brake_ros.physics.brakes.thermal.Peaks`; NaN without block brakes).
     stops : tuple of StopRecord
         Every stop of the run, each its own record: brake command time and speed, stopping
         distance and time, settled time, peak forces with their couplers, and its verdicts
@@ -381,14 +563,48 @@ class RunResult:
         The stop under every member of a model-form band, when asked for
         (:class:`~ltd_brake_ros.studies.band.BandResult`; the summary, verdicts and time
         series are then the nominal member's).
+
+    Examples
+    --------
+    >>> run = emergency_stop(load_consist("scenario_6"), 100.0)  # doctest: +SKIP
+    >>> run.brake_heat.block_K - 273.15                          # doctest: +SKIP
     """
 
     summary: StopResult | None
     verdicts: Verdicts
     timeseries: TimeSeries
-    simulator: Simulator
+    simulator: Simulator | None = field(default=None, compare=False)
+    brake_heat: Any = None
     stops: tuple = ()
     band: Any = None
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["simulator"] = None  # compiled kernels and live state do not travel
+        return state
+
+    def __eq__(self, other) -> bool:
+        """Equal in every result field (arrays bit for bit; the simulator aside)."""
+        return isinstance(other, RunResult) and all(
+            _equal(getattr(self, k), getattr(other, k))
+            for k in ("summary", "verdicts", "timeseries", "brake_heat", "stops", "band"))
+
+    __hash__ = None
+
+    def __repr__(self) -> str:
+        s = self.summary
+        head = repr(s) if s is not None else "the train did not stop"
+        heat = "" if self.brake_heat is None or not np.isfinite(self.brake_heat.block_K) else \
+            f"; hottest blocks {self.brake_heat.block_K - 273.15:.0f} C"
+        return (f"RunResult({head}; verdicts {self.verdicts.status}{heat}; "
+                f"{self.timeseries.time_s.size} samples)")
+
+    def _repr_html_(self) -> str:
+        parts = [f"<b>RunResult</b>: verdicts {self.verdicts.status}"]
+        if self.summary is not None:
+            parts.append(self.summary._repr_html_())
+        parts.append(self.verdicts._repr_html_())
+        return "".join(parts)
 
     def to_dataframe(self, element: str | None = "vehicle"):
         """:meth:`TimeSeries.to_dataframe` of the run."""
@@ -415,6 +631,36 @@ def _announce_compile(**simulator_kwargs) -> None:
         say(notice)
 
 
+def _train(consist) -> Consist:
+    """A :class:`Consist`, or what :func:`load_consist` loads one from (a scenario name or
+    number, a consist file, a mapping); anything else is one line."""
+    if isinstance(consist, (str, int, os.PathLike, Mapping)) and not isinstance(consist, bool):
+        consist = load_consist(consist)
+    if isinstance(consist, Consist):
+        _warn_axle_loads(consist)
+        return consist
+    raise InputError("consist", "", f"expected a Consist (load_consist(...)), a scenario, a "
+                     f"consist file or a mapping, got {type(consist).__name__}")
+
+
+def _speed(speed_kmh, *, at_rest: bool) -> float:
+    """The initial speed [km/h], checked: finite, 0 to 400, above 0 for a stop from speed."""
+    from .run_spec import SPEED_RANGE_KMH
+
+    lo, hi = SPEED_RANGE_KMH
+    try:
+        v = float(speed_kmh)
+    except (TypeError, ValueError):
+        raise InputError("speed_kmh", "", f"must be a number of km/h, got {speed_kmh!r}") \
+            from None
+    if not (math.isfinite(v) and lo <= v <= hi):
+        raise InputError("speed_kmh", "", f"must be between {lo:g} and {hi:g} km/h, got {v:g}")
+    if v == 0.0 and not at_rest:
+        raise InputError("speed_kmh", "", "an emergency stop needs a speed above 0 km/h "
+                         "(run_commands may start at rest)")
+    return v
+
+
 def _attrs(sim: Simulator, speed_kmh: float) -> dict:
     return {"consist": sim.consist.name, "initial_speed_kmh": float(speed_kmh),
             "step_s": sim.step_s, "tolerance_m_s": float(sim.tolerance_m_s)}
@@ -429,10 +675,11 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
 
     Parameters
     ----------
-    consist : Consist
-        E.g. :func:`load_consist` ``("scenario_6")``.
+    consist : Consist, str, int, path-like or mapping
+        The train: a :class:`Consist`, or what :func:`load_consist` loads one from
+        (``"scenario_6"``, ``6``, a consist file, a mapping).
     speed_kmh : float
-        Initial speed [km/h].
+        Initial speed [km/h], above 0 and at most 400.
     params, coupler, track : optional
         Model inputs (defaults: :func:`load_brake_params`, :func:`load_coupler`, level track).
     sample_s : float, optional
@@ -454,9 +701,19 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
 
     Raises
     ------
+    InputError
+        A consist that cannot be loaded, a speed that is not a finite number above 0.
     SimulationError
         A step failed, or the train did not stop within ``max_time_s``.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import emergency_stop
+    >>> run = emergency_stop("scenario_6", 100.0)  # doctest: +SKIP
+    >>> run.summary.stopping_distance_m            # doctest: +SKIP
+    489.2
     """
+    consist, speed_kmh = _train(consist), _speed(speed_kmh, at_rest=False)
     _announce_compile(consist=consist, speed_kmh=speed_kmh, params=params, lut=coupler,
                       track=track, step_s=step_s, tolerance_m_s=tolerance_m_s)
     sampler = _Sampler()
@@ -470,14 +727,15 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
             None if band is True else band)
         result, sim = run_band(consist, speed_kmh, params, coupler, track, band=members,
                                step_s=step_s, tolerance_m_s=tolerance_m_s, chunk_s=sample_s,
-                               max_time_s=max_time_s, on_nominal=sampler)
+                               max_time_s=max_time_s, on_nominal=sampler,
+                               on_nominal_start=sampler.start)
     else:
         sim = emergency_run(consist, speed_kmh, params, coupler, track, step_s=step_s,
                             tolerance_m_s=tolerance_m_s, chunk_s=sample_s,
-                            max_time_s=max_time_s, on_chunk=sampler)
+                            max_time_s=max_time_s, on_chunk=sampler, on_start=sampler.start)
     summary = summarize(sim, time.perf_counter() - start)
     return RunResult(summary, sim.verdicts(), sampler.series(sim, _attrs(sim, speed_kmh)), sim,
-                     sim.stops, result)
+                     sim.brake_temperatures(), sim.stops, result)
 
 
 def run_commands(consist: Consist, speed_kmh: float, commands, *,
@@ -489,9 +747,10 @@ def run_commands(consist: Consist, speed_kmh: float, commands, *,
 
     Parameters
     ----------
-    consist : Consist
+    consist : Consist, str, int, path-like or mapping
+        As for :func:`emergency_stop`.
     speed_kmh : float
-        Initial speed [km/h].
+        Initial speed [km/h], 0 (at rest) to 400.
     commands : CommandScript, path-like, mapping or list
         See :func:`load_commands`; the commands change at sample boundaries.
     params, coupler, track, sample_s, step_s, tolerance_m_s : optional
@@ -503,7 +762,20 @@ def run_commands(consist: Consist, speed_kmh: float, commands, *,
     -------
     RunResult
         ``summary`` is None when the train did not stop.
+
+    Raises
+    ------
+    InputError
+        A consist or script that cannot be loaded, a speed that is not finite or is negative.
+    SimulationError
+        A step failed.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import run_commands
+    >>> run = run_commands("scenario_1", 0.0, [{"t_s": 0, "traction": 0.5}], max_time_s=60)  # doctest: +SKIP
     """
+    consist, speed_kmh = _train(consist), _speed(speed_kmh, at_rest=True)
     script = commands if isinstance(commands, CommandScript) else load_commands(commands)
     _announce_compile(consist=consist, speed_kmh=speed_kmh, params=params, lut=coupler,
                       track=track, step_s=step_s, tolerance_m_s=tolerance_m_s)
@@ -511,11 +783,11 @@ def run_commands(consist: Consist, speed_kmh: float, commands, *,
     start = time.perf_counter()
     sim = scripted_run(consist, speed_kmh, script, params, coupler, track, step_s=step_s,
                        tolerance_m_s=tolerance_m_s, chunk_s=sample_s, max_time_s=max_time_s,
-                       on_chunk=sampler)
+                       on_chunk=sampler, on_start=sampler.start)
     wall = time.perf_counter() - start
     summary = summarize(sim, wall) if sim.stopping_distance_m is not None else None
     return RunResult(summary, sim.verdicts(), sampler.series(sim, _attrs(sim, speed_kmh)), sim,
-                     sim.stops)
+                     sim.brake_temperatures(), sim.stops)
 
 
 # --------------------------------------------------------------------------- recordings
@@ -531,10 +803,40 @@ class Recording:
         Stopping distance, peaks, verdicts, brake pipe (:mod:`ltd_brake_ros.analysis.report`).
     timeseries : TimeSeries
         The recorded arrays (the quantities the recording holds).
+
+    Examples
+    --------
+    >>> rec = read_recording("runs/demo_20261203-101500")  # doctest: +SKIP
+    >>> rec.report.stopping_distance_m, rec.report.verdicts.status  # doctest: +SKIP
     """
 
     report: Any
     timeseries: TimeSeries
+
+    def __repr__(self) -> str:
+        r = self.report
+        stop = "no stop" if r.stopping_distance_m is None else \
+            f"stopping distance {r.stopping_distance_m:.1f} m"
+        return (f"Recording({r.source!r}: {stop}, peak draft {r.peak_draft_kN:.1f} kN, buff "
+                f"{r.peak_buff_kN:.1f} kN, verdicts {r.verdicts.status}; "
+                f"{self.timeseries.time_s.size} samples)")
+
+    def _repr_html_(self) -> str:
+        from ._display import html_table, number
+
+        r = self.report
+        rows = [(k, number(getattr(r, k))) for k in (
+            "stopping_distance_m", "stopping_time_s", "command_speed_kmh", "peak_draft_kN",
+            "peak_draft_coupler", "peak_buff_kN", "peak_buff_coupler", "n_vehicles")]
+        return html_table(f"Recording {r.source}", rows, ["field", "value"]) + \
+            r.verdicts._repr_html_()
+
+    def __eq__(self, other) -> bool:
+        """Equal report and time series (arrays bit for bit, NaN equal to NaN)."""
+        return isinstance(other, Recording) and self.timeseries == other.timeseries and \
+            _equal(self.report, other.report)
+
+    __hash__ = None
 
     def to_dataframe(self, element: str | None = "vehicle"):
         """:meth:`TimeSeries.to_dataframe` of the recording."""
@@ -551,17 +853,26 @@ def read_recording(path: str | os.PathLike, namespace: str | None = None) -> Rec
     Parameters
     ----------
     path : str or path-like
+        The recording's folder or ``.mcap`` file (an unfinished one is read to its last
+        complete chunk).
     namespace : str, optional
         Namespace of the plant's topics (default: the first that holds them).
 
     Returns
     -------
     Recording
+        Its report and time series (sample times on the nanosecond stamps of the recording).
 
     Raises
     ------
     BagError
         The recording cannot be read or holds no plant state.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import read_recording
+    >>> rec = read_recording("runs/demo_20261203-101500")  # doctest: +SKIP
+    >>> rec.to_dataframe("coupler").coupler_force_N.max()   # doctest: +SKIP
     """
     from .analysis.report import analyse
     from .analysis.samples import ARRAYS, plant_samples
@@ -570,11 +881,13 @@ def read_recording(path: str | os.PathLike, namespace: str | None = None) -> Rec
     names = {"vehicles/speed": "speed_m_s", "vehicles/position": "position_m",
              "vehicles/brake_force": "brake_force_N",
              "vehicles/traction_force": "traction_force_N",
+             "vehicles/block_temperature": "block_temperature_K",
+             "vehicles/wheel_temperature": "wheel_temperature_K",
              "couplers/force": "coupler_force_N"}
-    rows: dict[float, dict] = {}
+    rows: dict[int, dict] = {}  # by the stamp [ns]
     for name, t, _log, value in plant_samples(path, report.namespace, report.stamped):
         if name in names and name in ARRAYS:
-            rows.setdefault(round(t, 9), {})[names[name]] = np.asarray(value, float)
+            rows.setdefault(_stamp_ns(t), {})[names[name]] = np.asarray(value, float)
     times = sorted(rows)
     complete = [t for t in times if len(rows[t]) == len(
         {k for r in rows.values() for k in r})]  # samples holding every recorded quantity
@@ -596,7 +909,7 @@ def read_recording(path: str | os.PathLike, namespace: str | None = None) -> Rec
         attrs["initial_speed_kmh"] = float(meta["initial_speed_kmh"])
     if isinstance(meta.get("consist"), dict) and isinstance(meta["consist"].get("name"), str):
         attrs["consist"] = meta["consist"]["name"]
-    return Recording(report, TimeSeries(np.array(complete, float), vehicles, couplers,
+    return Recording(report, TimeSeries(_seconds(complete), vehicles, couplers,
                                         names_list, attrs))
 
 
@@ -615,82 +928,117 @@ def load_campaign(source: str | os.PathLike | Mapping):
     Returns
     -------
     Campaign
+        The validated campaign (its families, variants, uncertainties, manoeuvres, seed and
+        size).
+
+    Raises
+    ------
+    InputError
+        Naming the file or mapping, the field and the reason.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_campaign
+    >>> c = load_campaign("campaigns/example.yaml")
+    >>> c.runs > 0 and c.seed >= 0
+    True
     """
     from .inputs.campaign import campaign_from_mapping, load_campaign as _load
 
     if isinstance(source, Mapping):
-        import hashlib
-
-        text = json.dumps(source, sort_keys=True, default=str)
-        return campaign_from_mapping(dict(source), "campaign mapping",
-                                     hashlib.sha256(text.encode()).hexdigest())
+        return campaign_from_mapping(dict(source), "campaign mapping")
     return _load(source)
 
 
 def run_campaign(campaign, out: str | os.PathLike, *, jobs: int | None = None,
-                 dask: str | None = None, progress: bool = False):
-    """Run a campaign into a results folder (resumes what is missing).
+                 dask: str | None = None, progress: bool = True):
+    """Run a campaign into a results folder (resumes what is missing) and read its results.
 
     Parameters
     ----------
     campaign : Campaign, path-like or mapping
         See :func:`load_campaign`.
     out : str or path-like
-        Results folder (Parquet batches and a manifest).
+        Results folder (Parquet batches and a manifest); an existing one must hold the same
+        campaign (it is completed, never mixed).
     jobs : int, optional
-        Worker processes (default: all cores).
+        Worker processes (default: all cores; 1: in this process).
     dask : str, optional
         ``local:N`` or a scheduler address ``tcp://host:8786``.
     progress : bool, optional
-        Show a progress bar on stderr.
+        Show a progress bar (``tqdm.auto``: a widget in a notebook, text on stderr
+        elsewhere).
 
     Returns
     -------
-    pyarrow.Table
-        Every row of the results folder.
+    CampaignResults
+        Every row of the folder and the report's statistics
+        (:class:`~ltd_brake_ros.analysis.campaign_results.CampaignResults`).
+
+    Raises
+    ------
+    InputError
+        A bad campaign, or a folder of another campaign.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_campaign, run_campaign
+    >>> res = run_campaign(load_campaign("campaigns/example.yaml"), "runs/example", jobs=2)  # doctest: +SKIP
+    >>> res.quantiles(kpi="peak_buff_kN")                                                  # doctest: +SKIP
     """
-    from .studies.campaign_exec import make_executor, read_results
+    from .studies.campaign_exec import make_executor, missing_batches, prepare_folder
     from .studies.campaign_exec import run_campaign as _run
 
     c = campaign if hasattr(campaign, "families") else load_campaign(campaign)
+    prepare_folder(c, out, create=False)  # another campaign's folder: one line, no worker
     bar = None
     if progress:
-        from tqdm import tqdm
+        from tqdm.auto import tqdm
 
-        bar = tqdm(total=c.runs * len(c.manoeuvres), unit="run", desc=c.name)
-    with make_executor(jobs, dask) as executor:
-        _run(c, out, executor, progress=(lambda runs, failed: bar.update(runs)) if bar
-             else None)
-    if bar is not None:
-        bar.close()
-    return read_results(out)[1]
+        todo = missing_batches(c, out)
+        left = sum(min(c.batch_size, c.runs - b * c.batch_size) for b in todo)
+        per_train = len(c.manoeuvres)
+        bar = tqdm(total=c.runs * per_train, initial=(c.runs - left) * per_train, unit="run",
+                   desc=c.name)
+    try:
+        with make_executor(jobs, dask) as executor:
+            _run(c, out, executor, progress=(lambda runs, failed: bar.update(runs)) if bar
+                 else None)
+    finally:
+        if bar is not None:
+            bar.close()
+    return read_campaign(out)
 
 
 def read_campaign(out: str | os.PathLike):
-    """The results of a campaign folder as a pandas DataFrame (one row per train and
-    manoeuvre; units of each column in ``df.attrs["units"]`` where the files state them).
+    """The results of a campaign folder, as an object with the report's statistics.
 
     Parameters
     ----------
     out : str or path-like
+        A results folder of :func:`run_campaign` or ``ltd-brake campaign run``.
 
     Returns
     -------
-    pandas.DataFrame
-    """
-    from .studies.campaign_exec import read_results
+    CampaignResults
+        ``to_dataframe()`` (one row per train and manoeuvre, units in ``df.attrs["units"]``),
+        ``quantiles()``, ``exceedance_curve()``, ``exceedance()``, ``compare()`` (the
+        relative approach), ``sensitivity()``, ``report()``, ``to_html()``
+        (:class:`~ltd_brake_ros.analysis.campaign_results.CampaignResults`).
 
-    _optional("pandas")
-    table = read_results(out)[1]
-    df = table.to_pandas()
-    meta = table.schema.metadata or {}
-    units = {}
-    for f in table.schema:
-        m = f.metadata or {}
-        if b"unit" in m:
-            units[f.name] = m[b"unit"].decode()
-    df.attrs["units"] = units
-    if meta:
-        df.attrs["schema"] = {k.decode(): v.decode(errors="replace") for k, v in meta.items()
-                              if not k.startswith(b"pandas") and not k.startswith(b"ARROW")}
-    return df
+    Raises
+    ------
+    InputError
+        Not a results folder, or a damaged batch file.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import read_campaign
+    >>> res = read_campaign("runs/example")                        # doctest: +SKIP
+    >>> df = res.to_dataframe()                                    # doctest: +SKIP
+    >>> res.compare(read_campaign("runs/reference"), quantile=0.9).outcome  # doctest: +SKIP
+    'not worse'
+    """
+    from .analysis.campaign_results import CampaignResults
+
+    return CampaignResults(out)

@@ -118,7 +118,8 @@ def resolve_run_spec(consist: str | None = None, *, scenario: str | int | None =
     scenario : str or int, optional
         Paper scenario; with ``consist`` a file, the file's train runs at the scenario's speed.
     speed_kmh : float, optional
-        Initial speed [km/h]; ``None`` (or negative) takes the scenario's.
+        Initial speed [km/h], 0 to 400; ``None`` takes the scenario's (a negative or
+        non-finite speed is refused).
     params_file, lut_file, track_file : str, optional
         Files; ``None`` or empty takes the shipped default (brake parameters:
         :func:`~ltd_brake_ros.inputs.default_brake_params` of the train).
@@ -152,14 +153,17 @@ def resolve_run_spec(consist: str | None = None, *, scenario: str | int | None =
                            "scenario_6)")
     if speed_kmh is not None and not math.isfinite(speed_kmh):
         raise RunSpecError("speed_kmh", f"must be a finite number of km/h, got {speed_kmh}")
-    if speed_kmh is not None and speed_kmh >= 0.0:
+    lo, hi = SPEED_RANGE_KMH
+    if speed_kmh is not None and speed_kmh < lo:
+        raise RunSpecError("speed_kmh", f"must be between {lo:g} and {hi:g} km/h, got "
+                           f"{speed_kmh:g} (a speed, not a direction: the train runs forward)")
+    if speed_kmh is not None:
         speed = float(speed_kmh)
     elif sc is not None:
         speed = float(sc.speed_kmh)
     else:
         raise RunSpecError("speed_kmh", "must be given (0 to 400 km/h) when the train comes "
                            "from a consist file; only a scenario brings its own speed")
-    lo, hi = SPEED_RANGE_KMH
     if not (math.isfinite(speed) and lo <= speed <= hi):
         raise RunSpecError("speed_kmh", f"must be between {lo:g} and {hi:g} km/h, got {speed}")
     params = (_file("brake_params", load_brake_params, params_file) if params_file

@@ -24,7 +24,18 @@ __all__ = ["Commands", "CouplerExcursions", "CouplerPeaks", "Event", "Excursion"
 
 class SimulationError(RuntimeError):
     """The integration could not proceed (a Newton iteration did not converge, a force was not
-    finite, or a step failed with an arithmetic error)."""
+    finite, or a step failed with an arithmetic error), or a run did not end as asked (the
+    train had not stopped in time); one line.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import SimulationError, emergency_stop
+    >>> try:
+    ...     emergency_stop("scenario_6", 100.0, max_time_s=5.0)
+    ... except SimulationError as exc:
+    ...     print(exc)  # doctest: +SKIP
+    the train had not stopped after 5 s
+    """
 
 
 @dataclass(frozen=True)
@@ -53,6 +64,12 @@ class Commands:
     ValueError
         A value is not finite or out of range, or a flag is not a bool (the message names the
         field).
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import Commands
+    >>> Commands(brake_demand=0.4).emergency
+    False
     """
 
     emergency: bool = False
@@ -162,6 +179,13 @@ class Snapshot:
         model's pressures) and the temperature of each vehicle's brake blocks and wheels,
         ``block_temperature_K`` and ``wheel_temperature_K`` (:mod:`.physics.brakes.thermal`;
         NaN for vehicles without block brakes).
+
+    Examples
+    --------
+    >>> run = emergency_stop("scenario_1", 60.0)       # doctest: +SKIP
+    >>> snap = run.simulator.snapshot()                 # doctest: +SKIP
+    >>> snap.stopped, snap.coupler_force_N.shape        # doctest: +SKIP
+    (True, (10,))
     """
 
     time_s: float

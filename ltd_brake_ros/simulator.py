@@ -275,6 +275,14 @@ class Simulator:
     model_warnings : tuple of str
         Where the run leaves its models' validated ranges (empty: inside them;
         :func:`~ltd_brake_ros.inputs.model_warnings`): every output of a run repeats them.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import Commands, Simulator, load_brake_params, load_consist, load_coupler
+    >>> sim = Simulator(load_consist("scenario_1"), 60.0, load_brake_params(), load_coupler())  # doctest: +SKIP
+    >>> snap = sim.advance(1.0, Commands(emergency=True))  # doctest: +SKIP
+    >>> snap.speed_m_s[0] < 60 / 3.6                        # doctest: +SKIP
+    True
     """
 
     def __init__(self, consist: Consist, speed_kmh: float, params: BrakeParams | None = None,

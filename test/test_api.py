@@ -66,7 +66,10 @@ def test_emergency_stop_is_the_stop_of_the_library_with_its_time_series(run6):
     k, n = ts.time_s.size, 33
     assert ts.vehicles["speed_m_s"].shape == (k, n) and ts.couplers["coupler_force_N"].shape \
         == (k, n - 1)
-    np.testing.assert_allclose(np.diff(ts.time_s), 0.1, atol=1e-9)  # a sample every 0.1 s
+    # a sample every 0.1 s, from t = 0 (the state before the brake command), each time the
+    # float nearest to k * 0.1 s as written (0.3, not the simulator's summed 0.30000000000000004)
+    assert ts.time_s[0] == 0.0 and ts.vehicles["speed_m_s"][0, 0] == 100 / 3.6
+    assert ts.time_s.tolist() == [float(f"{k / 10:.1f}") for k in range(ts.time_s.size)]
     # the samples run on until the train has settled (2 s at rest after its recoil)
     assert ts.time_s[-1] == pytest.approx(run6.summary.settled_time_s + SETTLE_S,
                                           abs=0.1 + 1e-9)
@@ -96,9 +99,12 @@ def test_time_series_as_a_tidy_dataframe_and_an_xarray_dataset(run6):
     peak = dc.loc[dc.coupler_force_N.idxmax()]
     assert peak.coupler_force_N == ts.couplers["coupler_force_N"].max()
     long = run6.to_dataframe(None)
-    assert len(long) == k * (5 * 33 + 32) and set(long.element) == {"vehicle", "coupler"}
+    assert len(long) == k * (7 * 33 + 32) and set(long.element) == {"vehicle", "coupler"}
     ds = run6.to_xarray()
     assert dict(ds.sizes) == {"time": k, "vehicle": 33, "coupler": 32}
+    # every sample time indexes the Dataset, as a user types it
+    for t in (0.0, 0.3, 10.0, *ts.time_s):
+        assert ds.sel(time=t).time.item() == t
     assert ds.coupler_force_N.attrs["units"] == "N" and "draft" in ds.attrs["conventions"]
     assert ds.vehicle_name.values[0] == "E402B"
     np.testing.assert_array_equal(ds.speed_m_s.values, ts.vehicles["speed_m_s"])
@@ -108,7 +114,7 @@ def test_time_series_as_a_tidy_dataframe_and_an_xarray_dataset(run6):
 
 def test_time_series_files_in_long_form(run6, tmp_path):
     ts = run6.timeseries
-    rows = ts.time_s.size * (5 * 33 + 32)
+    rows = ts.time_s.size * (7 * 33 + 32)
     csv = ts.write(tmp_path / "s6.csv")
     lines = csv.read_text().splitlines()
     assert lines[0] == "time_s,element,number,quantity,unit,value" and len(lines) == rows + 1
@@ -127,9 +133,11 @@ def test_simulate_writes_the_time_series_and_refuses_to_overwrite(tmp_path, caps
     assert main(["simulate", "--scenario", "1", "--json", "--timeseries", str(out)]) == 0
     summary = json.loads(capsys.readouterr().out)
     lines = out.read_text().splitlines()
-    k = (len(lines) - 1) // (5 * 11 + 10)
-    assert (len(lines) - 1) == k * (5 * 11 + 10)
-    assert k * 0.1 == pytest.approx(summary["settled_time_s"] + SETTLE_S, abs=0.1 + 1e-9)
+    k = (len(lines) - 1) // (7 * 11 + 10)
+    assert (len(lines) - 1) == k * (7 * 11 + 10)
+    # t = 0 on, to the train settled
+    assert (k - 1) * 0.1 == pytest.approx(summary["settled_time_s"] + SETTLE_S, abs=0.1 + 1e-9)
+    assert lines[1].startswith("0.0,vehicle,0,position_m,")
     assert main(["simulate", "--scenario", "1", "--timeseries", str(out)]) == 2
     assert "exists" in capsys.readouterr().err
 
@@ -157,15 +165,203 @@ def test_a_recording_reads_back_as_the_run(tmp_path, capsys):
         == 10
     assert ts.vehicle_names[:2] == ["E402B", "Shimmns"] and ts.attrs["initial_speed_kmh"] == 100
     assert ts.vehicles["speed_m_s"][0, 0] == pytest.approx(100 / 3.6, rel=1e-3)
+    # the same run in Python joins its recording on time: every row of either matched, and the
+    # states agree (the recording holds float64 arrays of the same chunks)
+    run = api.emergency_stop(api.load_consist(1), 100.0)
+    pytest.importorskip("pandas")
+    mine, theirs = run.to_dataframe("vehicle"), rec.to_dataframe("vehicle")
+    joined = mine.merge(theirs, on=["time_s", "vehicle"], suffixes=("", "_rec"))
+    assert len(joined) == len(mine) == len(theirs)
+    np.testing.assert_array_equal(joined.speed_m_s, joined.speed_m_s_rec)
 
 
 def test_a_campaign_from_a_mapping_runs(tmp_path):
     pytest.importorskip("pyarrow")
     c = api.load_campaign(SMALL_CAMPAIGN)
-    table = api.run_campaign(c, tmp_path / "out", jobs=1)
-    assert table.num_rows == 4 and set(table["status"].to_pylist()) == {"ok"}
+    res = api.run_campaign(c, tmp_path / "out", jobs=1, progress=False)
+    assert len(res) == 4 and set(res.table["status"].to_pylist()) == {"ok"}
     # the same mapping is the same campaign: the folder resumes, nothing is run again
-    again = api.run_campaign(dict(SMALL_CAMPAIGN), tmp_path / "out", jobs=1)
-    assert again.equals(table)
+    again = api.run_campaign(dict(SMALL_CAMPAIGN), tmp_path / "out", jobs=1, progress=False)
+    assert again == res and again.table.equals(api.read_campaign(tmp_path / "out").table)
     with pytest.raises(InputError, match="runs"):
         api.load_campaign(dict(SMALL_CAMPAIGN, runs=-1))
+
+
+def _family(name: str, k0_mean: float) -> dict:
+    """40 trains of the small campaign (20 on each side of the median: intervals of q0.5), the
+    k0 scale of the block friction's mean ``k0_mean``; the same seed, the same trains."""
+    return dict(SMALL_CAMPAIGN, name=name, runs=40, batch_size=20,
+                uncertainties={"k0": {"normal": {"mean": k0_mean, "sd": 0.1}}})
+
+
+@pytest.fixture(scope="module")
+def families(tmp_path_factory):
+    pytest.importorskip("pandas")
+    pytest.importorskip("pyarrow")
+    folder = tmp_path_factory.mktemp("families")
+    return {name: api.run_campaign(_family(name, k0), folder / name, jobs=1, progress=False)
+            for name, k0 in (("reference", 2.7), ("stronger", 2.55))}
+
+
+def test_campaign_objects_give_the_command_lines_numbers_and_verdicts(families, tmp_path,
+                                                                      capsys):
+    from ltd_brake_ros.cli.main import main
+
+    fam, ref = families["stronger"], families["reference"]
+    argv = ["campaign", "report", fam.folder, "--against", ref.folder, "--quantile", "0.5",
+            "--json"]
+    status = main(argv)
+    cli = json.loads(capsys.readouterr().out)
+    c = fam.compare(ref, quantile=0.5, margin=0.05)
+    assert (c.outcome, c.exit_status) == (cli["outcome"], status)
+    assert c.report["pairing"]["mode"] == "paired"
+    rows = c.verdicts.set_index("kpi")
+    for v in cli["manoeuvres"]["emergency"]["relative"]:
+        assert rows.loc[v["kpi"], "verdict"] == v["verdict"]
+        if v["compared"]:
+            assert [rows.loc[v["kpi"], "worsening_low"], rows.loc[v["kpi"], "worsening_high"]] \
+                == pytest.approx(v["worsening_interval"])
+    # the deciding KPI chosen by name, one line for an unknown one
+    only = fam.compare(ref, quantile=0.5, kpi="stopping_distance_m")
+    assert only.report["deciding"] == ["stopping_distance_m"]
+    with pytest.raises(InputError, match="unknown KPI 'speed'"):
+        fam.compare(ref, kpi="speed")
+    with pytest.raises(InputError, match="--margin"):
+        fam.compare(ref, margin=2.0)
+    # quantiles with intervals: the report's
+    q = fam.quantiles([0.5, 0.99], kpi="peak_draft_kN").set_index("q")
+    cell = cli["manoeuvres"]["emergency"]["quantiles"]["peak_draft_kN"]
+    assert q.loc[0.5, ["estimate", "low", "high"]].tolist() == pytest.approx(
+        [cell["0.5"]["estimate"], cell["0.5"]["low"], cell["0.5"]["high"]])
+    assert np.isnan(q.loc[0.99, "low"]) and "too few runs beyond q" in q.loc[0.99, "note"]
+    # exceedances and the curve: buff forces are negative, beyond is below
+    e = fam.exceedance({"peak_buff_kN": -20.0}).iloc[0]
+    buff = fam.to_dataframe().peak_buff_kN
+    assert (e["count"], e["of"], e["beyond"]) == (int((buff < -20).sum()), 40, "below")
+    curve = fam.exceedance_curve("peak_buff_kN")
+    assert curve.value.iloc[-1] == buff.min() and curve.share.iloc[-1] == 1 / 40
+    assert fam.to_dataframe().attrs["units"]["peak_buff_kN"] == "kN"
+    # the HTML page, refused over an existing file unless forced
+    page = fam.to_html(tmp_path / "fam.html", against=ref, quantile=0.5)
+    assert "Relative approach against reference" in page.read_text()
+    with pytest.raises(InputError, match="exists"):
+        fam.to_html(page)
+    fam.to_html(page, force=True)
+    with pytest.raises(InputError, match="sobol or morris"):
+        fam.sensitivity()
+
+
+def test_results_travel_through_a_process_pool_and_dask(families, tmp_path):
+    """Every result type pickles and comes back equal, arrays bit for bit; a run's live
+    simulator does not travel."""
+    import pickle
+    from concurrent.futures import ProcessPoolExecutor
+
+    from ltd_brake_ros.analysis.campaign_results import CampaignResults
+    from ltd_brake_ros.cli.main import main
+
+    consist = api.load_consist(1)
+    run = api.emergency_stop(consist, 60.0)
+    assert main(["simulate", "--scenario", "1", "--speed-kmh", "60", "--record",
+                 str(tmp_path / "rec")]) == 0
+    rec = api.read_recording(tmp_path / "rec")
+    fam, ref = families["stronger"], families["reference"]
+    comparison = fam.compare(ref, quantile=0.5)
+    copy = pickle.loads(pickle.dumps(run))
+    assert copy == run and copy.simulator is None and run.simulator is not None
+    assert copy.timeseries.vehicles["speed_m_s"].tobytes() == \
+        run.timeseries.vehicles["speed_m_s"].tobytes()
+    def same_run(got) -> bool:  # computed elsewhere: equal but for its wall time
+        cost = ("wall_time_s", "real_time_factor")
+        return (got.timeseries == run.timeseries and got.verdicts == run.verdicts
+                and got.brake_heat == run.brake_heat and got.simulator is None
+                and {k: v for k, v in got.summary.as_dict().items() if k not in cost}
+                == {k: v for k, v in run.summary.as_dict().items() if k not in cost})
+
+    with ProcessPoolExecutor(1) as pool:
+        # there and back again: each object as it was
+        assert pool.submit(list, [run, rec, fam, comparison, run.verdicts]).result() == \
+            [copy, rec, fam, comparison, run.verdicts]
+        assert same_run(pool.submit(api.emergency_stop, consist, 60.0).result())
+        assert pool.submit(api.read_recording, tmp_path / "rec").result() == rec
+        assert pool.submit(api.read_campaign, fam.folder).result() == fam
+        assert pool.submit(CampaignResults.compare, fam, ref, quantile=0.5).result() \
+            == comparison
+    from ltd_brake_ros.studies.campaign_exec import DaskExecutor
+
+    pytest.importorskip("distributed")
+    with DaskExecutor("local:1") as dask:
+        client = dask.client
+        assert client.submit(list, [run, rec, fam, comparison, run.verdicts]).result() == \
+            [copy, rec, fam, comparison, run.verdicts]
+        assert same_run(client.submit(api.emergency_stop, consist, 60.0, pure=False).result())
+        assert client.submit(api.read_recording, tmp_path / "rec").result() == rec
+        assert client.submit(api.read_campaign, fam.folder).result() == fam
+        assert client.submit(CampaignResults.compare, fam, ref, quantile=0.5).result() \
+            == comparison
+
+
+def test_displays_fit_a_screen(families):
+    run = api.emergency_stop(api.load_consist(6), 100.0)
+    consist = api.load_consist(6)
+    for obj in (run, run.summary, run.verdicts, run.timeseries, consist, families["stronger"],
+                families["stronger"].compare(families["reference"], quantile=0.5)):
+        text = repr(obj)
+        assert len(text) <= 400 and "\n" not in text, (type(obj).__name__, len(text))
+        html = obj._repr_html_()
+        # a table of at most a screen: 40 rows, escaped text
+        assert html.count("<tr>") <= 40 and "<script" not in html, type(obj).__name__
+    assert "33 vehicles" in repr(consist) and "32 x Shimmns" in repr(consist)
+    assert "489.2 m" in repr(run.summary) and "PASS" in repr(run.verdicts)
+    # brake heat: in the summary of the run and in its time series
+    assert run.brake_heat.block_K > run.brake_heat.ambient_K
+    hot = run.timeseries.vehicles["block_temperature_K"]
+    # the peaks sit on the thermal model's 1 s grid: within a second's heating at the mean rate
+    heat = run.brake_heat
+    rate = (heat.block_K - heat.ambient_K) / heat.block_time_s  # [K/s]
+    assert abs(np.nanmax(hot) - heat.block_K) <= rate * 1.0
+    assert "block_temperature_K" in run.to_xarray()
+
+
+def test_typical_mistakes_are_one_line_or_taken_as_meant(capsys):
+    import warnings
+
+    from ltd_brake_ros.cli.main import main
+    from ltd_brake_ros.plant.run import load_plant_inputs
+
+    # a scenario's name where a Consist is expected is loaded; anything else is one line
+    by_name = api.emergency_stop("scenario_1", 30.0)
+    assert by_name.timeseries == api.emergency_stop(api.load_consist(1), 30.0).timeseries
+    with pytest.raises(InputError, match="^consist: expected a Consist"):
+        api.emergency_stop(3.5, 30.0)
+    # a speed is a finite number from 0 to 400 km/h, above 0 for a stop from speed
+    for speed in (-50.0, float("nan"), float("inf"), 401.0, 0.0, "fast"):
+        with pytest.raises(InputError, match="^speed_kmh: "):
+            api.emergency_stop("scenario_1", speed)
+    with pytest.raises(InputError, match="^speed_kmh: must be between 0 and 400"):
+        api.run_commands("scenario_1", -1.0, [{"t_s": 0.0, "traction": 0.2}], max_time_s=1.0)
+    at_rest = api.run_commands("scenario_1", 0.0, [{"t_s": 0.0, "traction": 0.3}],
+                               max_time_s=2.0)
+    assert at_rest.timeseries.vehicles["speed_m_s"][-1, 0] > 0.0  # starts at rest, moves off
+    for speed, words in (("-50", "must be between 0 and 400 km/h, got -50"),
+                         ("nan", "must be a finite number"),
+                         ("0", "an emergency stop needs a speed above 0 km/h")):
+        assert main(["simulate", "--scenario", "6", "--speed-kmh", speed]) == 2
+        err = capsys.readouterr().err
+        assert len(err.splitlines()) == 1 and "--speed-kmh" in err and words in err
+    # the plant's -1 still means the scenario's speed; other negatives are refused
+    assert load_plant_inputs("scenario_6", -1.0).speed_kmh == 100.0
+    with pytest.raises(Exception, match="initial_speed_kmh"):
+        load_plant_inputs("scenario_6", -5.0)
+    # a 102 t wagon on 4 axles: 25.5 t an axle, beyond every line category, named
+    heavy = {"vehicles": [{"type": "E402B"}, {"type": "Shimmns", "mass_t": 95.0},
+                          {"type": "Shimmns", "mass_t": 102.0}]}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        api.load_consist(heavy)
+    lines = [str(w.message) for w in caught]
+    assert len(lines) == 2
+    assert "vehicle 1 (Shimmns): axle load 23.8 t" in lines[0] and \
+        "needs a category E line" in lines[0]
+    assert "vehicle 2 (Shimmns): axle load 25.5 t" in lines[1] and \
+        "beyond every EN 15528 line category" in lines[1]

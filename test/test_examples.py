@@ -15,6 +15,7 @@ def test_the_analysis_tour_runs_and_draws_its_map(tmp_path, monkeypatch, capsys)
     pytest.importorskip("xarray")
     pytest.importorskip("pyarrow")
     monkeypatch.setenv("LTD_TOUR_OUT", str(tmp_path))
+    monkeypatch.setenv("MPLBACKEND", "Agg")  # the tour leaves the backend to its host
     monkeypatch.chdir(tmp_path)
     runpy.run_path(str(TOUR), run_name="__main__")
     text = capsys.readouterr().out
@@ -22,6 +23,8 @@ def test_the_analysis_tour_runs_and_draws_its_map(tmp_path, monkeypatch, capsys)
     assert "stopping distance 489.2 m" in text and "verdicts: PASS" in text
     assert "24 runs; |peak buff| quantiles [kN]:" in text and "0.99" in text
     assert (tmp_path / "coupler_force_map.png").stat().st_size > 10_000
+    assert (tmp_path / "buff_exceedance.png").stat().st_size > 5_000
+    assert "matplotlib.use" not in TOUR.read_text()  # inline plots in a notebook
     assert os.listdir(tmp_path / "tour_campaign" / "batches")
 
 

@@ -18,9 +18,13 @@ def test_scenario_brings_train_and_speed():
     assert resolve_run_spec(None, scenario=7).speed_kmh == 50.0
 
 
-def test_explicit_speed_wins_and_negative_means_the_scenarios():
+def test_explicit_speed_wins_none_means_the_scenarios_and_negative_is_refused():
     assert resolve_run_spec("6", speed_kmh=80.0).speed_kmh == 80.0
-    assert resolve_run_spec("6", speed_kmh=-1.0).speed_kmh == 100.0
+    assert resolve_run_spec("6", speed_kmh=None).speed_kmh == 100.0
+    assert resolve_run_spec("6", speed_kmh=0.0).speed_kmh == 0.0  # at rest: command runs
+    for speed in (-1.0, -50.0):  # never the scenario's speed in its place
+        with pytest.raises(RunSpecError, match="speed_kmh.*between 0 and 400 km/h"):
+            resolve_run_spec("6", speed_kmh=speed)
 
 
 def test_file_train_runs_at_the_scenario_speed_when_both_are_given():

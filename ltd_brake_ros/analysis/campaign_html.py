@@ -4,7 +4,7 @@ Everything a reader needs is inside the file: the style sheet inline, the figure
 images embedded in base64 ``data:`` URIs, no script and no reference to anything outside it,
 so the file opens offline and can be mailed or archived as it is. It shows what
 :func:`~ltd_brake_ros.analysis.campaign_report.campaign_report` returns: the runs and failures,
-per manoeuvre the quantiles with their bootstrap intervals, the verdict counts, the exceedance
+per manoeuvre the quantiles with their intervals, the verdict counts, the exceedance
 curves (the share of runs at or beyond a value, on a log scale), the relative approach against
 a reference family, the sensitivity indices of a Sobol' or Morris campaign, and the worst runs
 with the commands that rerun them with a full recording.
@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .campaign_intervals import TOO_FEW
 from .campaign_report import KPIS, exit_status
 
 __all__ = ["html_report", "write_html"]
@@ -46,7 +47,14 @@ _LEFT = ' class="l"'
 
 
 def _e(text) -> str:
+    """Text as HTML shows it: every user-given name passes here, never as markup."""
     return html.escape(str(text), quote=True)
+
+
+def _plain(text) -> str:
+    """Text as a matplotlib label shows it: ``$`` would start mathtext (and an unbalanced
+    formula fail the page)."""
+    return str(text).replace("$", r"\$")
 
 
 def _g(x) -> str:
@@ -58,6 +66,13 @@ def _pct(x, sign: bool = True) -> str:
     if x is None or not math.isfinite(x):
         return "n/a"
     return f"{100 * x:+.1f} %" if sign else f"{100 * x:.1f} %"
+
+
+def _iv(lo, hi, fmt) -> str:
+    """``[lo, hi]``, or why there is no interval (escaped)."""
+    if lo is None or hi is None or not (math.isfinite(lo) and math.isfinite(hi)):
+        return f"<span class=\"note\">({_e(TOO_FEW)})</span>"
+    return f"[{_e(fmt(lo))}, {_e(fmt(hi))}]"
 
 
 def _table(head: list, rows: list, left: int = 1) -> str:
@@ -118,7 +133,7 @@ def _exceedance_figure(table, ref_table, manoeuvre: str, name: str, ref_name) ->
     for ax, kpi in zip(axes.flat, kpis):
         direction = KPIS[kpi][1]
         for t, label in ((table, f"family {name}"), (ref_table, f"reference {ref_name}")):
-            label = label.replace("$", r"\$")  # plain text, not mathtext
+            label = _plain(label)
             x = _values(t, manoeuvre, kpi)
             if not len(x):
                 continue
@@ -137,7 +152,7 @@ def _exceedance_figure(table, ref_table, manoeuvre: str, name: str, ref_name) ->
         ax.legend(fontsize=8)
     for ax in list(axes.flat)[len(kpis):]:
         ax.set_visible(False)
-    fig.suptitle(f"exceedance (1 - F), manoeuvre {manoeuvre}")
+    fig.suptitle(_plain(f"exceedance (1 - F), manoeuvre {manoeuvre}"))
     return _png(fig)
 
 
@@ -174,14 +189,14 @@ def _quantiles(rep: dict, name: str, sec: dict) -> str:
     rows = []
     for kpi, counts in sec["counts"].items():
         qs = sec["quantiles"].get(kpi, {})
-        cells = [f"{_g(v['estimate'])} [{_g(v['low'])}, {_g(v['high'])}]<br>"
+        cells = [f"{_g(v['estimate'])} {_iv(v['low'], v['high'], _g)}<br>"
                  f"<span class=\"note\">tail {v['tail_points']}</span>" if v else "-"
                  for v in (qs.get(q) for q in levels)]
         rows.append([_e(kpi), _e(COLUMNS[kpi][0]), "larger" if KPIS[kpi][1] > 0 else
                      "more negative", _e(_counts_text(counts))] + cells)
     conf = 100 * rep["confidence"]
     out = [f"<p class=\"note\">qP: the value that a share 1 - P of the runs goes beyond in the "
-           f"KPI's worse direction; estimate [{conf:g} % percentile-bootstrap interval], tail: "
+           f"KPI's worse direction; estimate [{conf:g} % distribution-free interval], tail: "
            "the runs beyond the estimate.</p>", _table(head, rows, 4)]
     if sec["exceedance"]:
         erows = [[_e(kpi), _e(f"{'>' if e['beyond'] == 'above' else '<'} {e['threshold']:g}"),
@@ -200,7 +215,7 @@ def _relative(rep: dict, sec: dict) -> str:
     out = [f"<h3>Relative approach against {_e(rep['reference'])}</h3>",
            f"<p>q{_e(rep['quantile'])} in the worse direction, margin "
            f"{_e(_pct(rep['margin'], False))} of the reference's quantile, "
-           f"{100 * rep['confidence']:g} % intervals; bootstrap {_e(p['mode'])} "
+           f"{100 * rep['confidence']:g} % intervals; runs {_e(p['mode'])} "
            f"({_e(p['reason'])}).</p>"]
     rows = []
     for v in sec["relative"]:
@@ -210,8 +225,8 @@ def _relative(rep: dict, sec: dict) -> str:
         if v["compared"]:
             d, w = v["difference_interval"], v["worsening_interval"]
             cells += [_g(v["family"]), _g(v["reference"]),
-                      f"{_g(v['difference'])} [{_g(d[0])}, {_g(d[1])}] {_e(v['unit'])}",
-                      f"{_pct(v['worsening'])} [{_pct(w[0])}, {_pct(w[1])}]",
+                      f"{_g(v['difference'])} {_iv(d[0], d[1], _g)} {_e(v['unit'])}",
+                      f"{_pct(v['worsening'])} {_iv(w[0], w[1], _pct)}",
                       _e(f"{_pct(v['margin'], False)} ({v['margin_value']:.4g} {v['unit']})"),
                       _e(v["note"])]
         else:
@@ -276,12 +291,12 @@ def _sensitivity(sens: dict) -> str:
                     err = np.where(np.isfinite(err), np.abs(err), 0.0)
                 ax.bar(pos + (k - 0.5) * 0.38, np.nan_to_num(val), 0.38, yerr=err,
                        capsize=3, label=label)
-            ax.set_xticks(pos, inputs, rotation=30, ha="right", fontsize=8)
+            ax.set_xticks(pos, [_plain(n) for n in inputs], rotation=30, ha="right", fontsize=8)
             ax.set_title(f"{kpi} [{res['unit']}]" if not sobol else kpi, fontsize=9)
             ax.grid(alpha=0.3, axis="y")
             ax.legend(fontsize=7)
-        fig.suptitle(f"{'Sobol indices' if sobol else 'Morris mu* and sigma'}, manoeuvre "
-                     f"{name}", fontsize=10)
+        fig.suptitle(_plain(f"{'Sobol indices' if sobol else 'Morris mu* and sigma'}, "
+                            f"manoeuvre {name}"), fontsize=10)
         out.append(_png(fig))
     return "\n".join(out)
 
@@ -354,7 +369,7 @@ def html_report(rep: dict, table=None, ref_table=None) -> str:
             "</body>\n</html>\n")
 
 
-def write_html(rep: dict, path, *, against=None) -> str:
+def write_html(rep: dict, path, *, family=None, against=None) -> str:
     """Write the report to one self-contained HTML file.
 
     Parameters
@@ -363,18 +378,20 @@ def write_html(rep: dict, path, *, against=None) -> str:
         From :func:`~ltd_brake_ros.analysis.campaign_report.campaign_report`.
     path : path-like
         The file (replaced if it exists: the caller decides whether it may be).
-    against : path-like, optional
-        The reference's results folder (its exceedance curves beside the family's).
+    family : path-like or CampaignResults, optional
+        The family's results (default: read from ``rep["folder"]``).
+    against : path-like or CampaignResults, optional
+        The reference's results (its exceedance curves beside the family's).
 
     Returns
     -------
     str
         The path written.
     """
-    from ..studies.campaign_exec import read_results
+    from .campaign_report import results_of
 
-    table = read_results(rep["folder"])[1]
-    ref_table = read_results(against)[1] if against is not None else None
+    table = results_of(family if family is not None else rep["folder"])[2]
+    ref_table = results_of(against)[2] if against is not None else None
     text = html_report(rep, table, ref_table)
     Path(path).write_text(text, encoding="utf-8")
     return str(path)

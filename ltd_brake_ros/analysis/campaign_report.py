@@ -1,20 +1,23 @@
-"""Campaign report: quantiles with bootstrap confidence intervals, exceedance probabilities,
-the worst runs, CDF and histogram plots, and the relative approach against a reference family.
+"""Campaign report: quantiles with confidence intervals, exceedance probabilities, the worst
+runs, CDF and histogram plots, and the relative approach against a reference family.
 
 The relative approach (UIC 421 admits a new freight-train family by comparing it with one
 already admitted) is a non-inferiority comparison of a tail quantile of each KPI: the
-percentile-bootstrap interval (Efron and Tibshirani 1993) of the family's worsening against
-the reference, relative to the reference's quantile, is set against a margin (Wellek 2010;
-the three outcomes as Piaggio et al. 2012, Fig. 2):
+interval of the family's worsening against the reference, relative to the reference's
+quantile (:mod:`.campaign_intervals`: distribution-free intervals of each quantile, Fieller's
+interval of their ratio), is set against a margin (Wellek 2010; the three outcomes as Piaggio
+et al. 2012, Fig. 2):
 
 * ``not worse``: the whole interval lies below the margin;
 * ``worse``: the whole interval lies above it (worse than the reference by more than the
   margin);
-* ``inconclusive``: the interval holds the margin.
+* ``inconclusive``: the interval holds the margin, or there is no interval (too few runs
+  beyond the quantile).
 
 Two families drawn with the same seed whose runs are the same trains (the reference with one
-parameter changed) are *paired*: the bootstrap resamples run ids jointly, which removes the
-train-to-train scatter that both share. Otherwise each family is resampled on its own.
+parameter changed) are *paired*: the correlation of their quantiles over the common runs
+narrows the interval of the difference, removing the train-to-train scatter that both
+share. Otherwise the two are independent samples.
 
 Quantile levels count in each KPI's worse direction: ``q0.99`` is the value that a share
 0.01 of the runs goes beyond, i.e. the 0.99 quantile of ``peak_draft_kN`` but the 0.01
@@ -22,7 +25,6 @@ quantile of ``peak_buff_kN`` (buff forces are negative, a more negative one is w
 
 References
 ----------
-Efron, B. and Tibshirani, R. J. (1993). *An Introduction to the Bootstrap*. Chapman & Hall.
 Wellek, S. (2010). *Testing Statistical Hypotheses of Equivalence and Noninferiority*, 2nd ed.
 CRC Press.
 Piaggio, G. et al. (2012). Reporting of noninferiority and equivalence randomized trials:
@@ -41,9 +43,10 @@ import pyarrow.compute as pc
 from ..inputs import InputError
 from ..studies.campaign import COLUMNS
 from ..studies.campaign_exec import read_results
+from .campaign_intervals import TOO_FEW, compare_quantiles, enough_runs, quantile_interval
 from .campaign_kpis import KPIS, NO_VALUE
 
-__all__ = ["DECIDING", "KPIS", "OUTCOMES", "as_json", "bootstrap_quantile", "campaign_report",
+__all__ = ["DECIDING", "KPIS", "OUTCOMES", "as_json", "campaign_report",
            "exit_status", "format_report", "pairing", "parse_kpis", "parse_thresholds",
            "worst_runs"]
 
@@ -56,7 +59,7 @@ ABS_BUFF = "abs_peak_buff_kN"
 OUTCOMES = {"not worse": 0, "worse": 1, "inconclusive": 4}
 #: Quantile levels reported (in each KPI's worse direction).
 QUANTILES = (0.5, 0.9, 0.99)
-#: Bootstrap resamples.
+#: Bootstrap resamples of the sensitivity indices (SALib's intervals).
 RESAMPLES = 1000
 #: Draw columns that must agree, run by run, for two families to be paired.
 PAIRING_COLUMNS = ("family", "wagons", "speed_kmh", "wagon_mass_t")
@@ -218,63 +221,6 @@ def worst_runs(table, kpi: str, n: int, manoeuvre: str | None = None) -> list[di
     return out
 
 
-def _row_quantiles(a: np.ndarray, level: float) -> np.ndarray:
-    """Quantile ``level`` of each row of ``a``, NaN ignored (NaN for a row without a value).
-
-    As ``numpy.nanquantile(a, level, axis=1)`` with linear interpolation, vectorised.
-    """
-    if not np.isnan(a).any():
-        return np.quantile(a, level, axis=1)
-    s = np.sort(a, axis=1)  # NaN last
-    k = np.isfinite(s).sum(axis=1)
-    pos = np.maximum(k - 1, 0) * level
-    lo = np.floor(pos).astype(int)
-    hi = np.minimum(lo + 1, np.maximum(k - 1, 0))
-    r = np.arange(len(a))
-    with np.errstate(invalid="ignore"):
-        out = s[r, lo] + (pos - lo) * (s[r, hi] - s[r, lo])
-    out[k == 0] = np.nan
-    return out
-
-
-def _interval(reps: np.ndarray, confidence: float) -> tuple[float, float]:
-    """Two-sided percentile interval of bootstrap replicates (NaN ones left out)."""
-    reps = reps[~np.isnan(reps)]
-    if not len(reps):
-        return (math.nan, math.nan)
-    a = (1.0 - confidence) / 2.0
-    return float(np.quantile(reps, a)), float(np.quantile(reps, 1.0 - a))
-
-
-def bootstrap_quantile(x: np.ndarray, q: float, confidence: float, rng: np.random.Generator,
-                       resamples: int = RESAMPLES) -> tuple[float, float, float, np.ndarray]:
-    """Quantile ``q`` of ``x`` with a two-sided percentile-bootstrap confidence interval.
-
-    Parameters
-    ----------
-    x : ndarray
-        Values; NaN (a run without a value) is resampled with the others and left out of
-        each resample's quantile.
-    q : float
-        Level of the quantile (of ``x`` as it is, whatever the direction), in (0, 1).
-    confidence : float
-        Two-sided confidence of the interval.
-    rng : numpy.random.Generator
-    resamples : int, optional
-
-    Returns
-    -------
-    estimate, low, high : float
-        In the unit of ``x``.
-    replicates : ndarray
-        The resampled quantiles.
-    """
-    x = np.asarray(x, float)
-    reps = _row_quantiles(x[rng.integers(0, len(x), (resamples, len(x)))], q)
-    est = float(np.nanquantile(x, q)) if np.isfinite(x).any() else math.nan
-    return (est, *_interval(reps, confidence), reps)
-
-
 def _same(a, b) -> bool:
     """Two draws of a run agree (floats to 1e-9 relative, lists element by element)."""
     if isinstance(a, list) or isinstance(b, list):
@@ -322,7 +268,7 @@ def pairing(meta: dict, table, ref_meta: dict, ref_table, manoeuvres: list[str],
     out = {"mode": "independent", "common_runs": len({k[0] for k in common})}
     seed, ref_seed = meta.get("seed"), ref_meta.get("seed")
     if independent:
-        return {**out, "reason": "independent resampling requested"}
+        return {**out, "reason": "independent comparison requested"}
     if seed is None or ref_seed is None:
         return {**out, "reason": "a manifest records no seed"}
     if seed != ref_seed:
@@ -347,11 +293,12 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
 
     Parameters
     ----------
-    folder : path-like
-        Results folder of ``ltd-brake campaign run``.
-    against : path-like, optional
-        Results folder of the reference family (relative approach, for the manoeuvres of the
-        same name).
+    folder : path-like or CampaignResults
+        Results folder of ``ltd-brake campaign run``, or its results already read
+        (:class:`~ltd_brake_ros.analysis.campaign_results.CampaignResults`).
+    against : path-like or CampaignResults, optional
+        Results of the reference family (relative approach, for the manoeuvres of the same
+        name).
     thresholds : dict, optional
         KPI -> value in the KPI's unit: the probability of going beyond it in the KPI's worse
         direction (Wilson interval).
@@ -373,9 +320,9 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
     plots : path-like, optional
         Folder for ``cdf_<manoeuvre>_<KPI>.png`` and ``hist_<manoeuvre>_<KPI>.png``.
     seed : int, optional
-        Bootstrap seed (the report is reproducible).
+        Seed of the sensitivity indices' bootstrap (the report is reproducible).
     resamples : int, optional
-        Bootstrap resamples.
+        Bootstrap resamples of the sensitivity indices.
 
     Returns
     -------
@@ -398,8 +345,7 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
         on which no deciding KPI can be compared.
     """
     deciding = parse_kpis(list(kpis) if kpis else None)
-    meta, table = read_results(folder)
-    rng = np.random.default_rng(seed)
+    folder, meta, table = results_of(folder)
     status = np.array(table["status"].to_pylist())
     rep: dict = {"name": meta.get("name", str(folder)), "folder": str(folder),
                  "runs": table.num_rows,
@@ -417,7 +363,7 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
     names = meta.get("manoeuvres") or sorted(set(table["manoeuvre"].to_pylist()))
     ref_table = None
     if against is not None:
-        ref_meta, ref_table = read_results(against)
+        against, ref_meta, ref_table = results_of(against)
         rep["reference"] = ref_meta.get("name", str(against))
         ref_names = set(ref_table["manoeuvre"].to_pylist())
         common = [n for n in names if n in ref_names]
@@ -438,7 +384,7 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
                    quantile=quantile, margin=margin, deciding=list(deciding))
     for name in names:
         part = table.filter(pc.equal(table["manoeuvre"], name))
-        section = _section(part, thresholds or {}, confidence, worst, rng, resamples,
+        section = _section(part, thresholds or {}, confidence, worst,
                            sorted(set(QUANTILES) | {quantile}))
         ref_part = None
         if ref_table is not None:
@@ -449,9 +395,9 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
                         ref_part["run_id"].to_pylist()):
                     mode = "independent"  # incomplete folders without a train in common here
                     rep["warnings"].append(f"{name}: no run in common with the reference, "
-                                           "resampled independently")
+                                           "compared as independent samples")
                 section["relative"] = _relative(part, ref_part, mode, quantile, confidence,
-                                                margin, deciding, rng, resamples)
+                                                margin, deciding)
             else:
                 ref_part = None
         rep["manoeuvres"][name] = section
@@ -464,7 +410,7 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
 
         rep["warnings"].append(design_note(meta["sampling"]))
         rep["sensitivity"] = sensitivity_report(folder, meta, table, confidence=confidence,
-                                                seed=seed)
+                                                seed=seed, resamples=resamples)
     if against is not None:
         votes = [v for sec in rep["manoeuvres"].values() for v in sec["relative"]
                  if v["deciding"] and v["verdict"] != "not assessed"]
@@ -478,19 +424,35 @@ def campaign_report(folder, *, against=None, thresholds: dict | None = None,
     return rep
 
 
+def results_of(source) -> tuple[str, dict, pa.Table]:
+    """The folder, manifest and rows of a results folder, or of results already read (an
+    object with ``folder``, ``manifest`` and ``table``)."""
+    if all(hasattr(source, k) for k in ("folder", "manifest", "table")):
+        return str(source.folder), source.manifest, source.table
+    meta, table = read_results(source)
+    return str(source), meta, table
+
+
 def exit_status(rep: dict) -> int:
     """Exit status of ``campaign report`` for a report: 0, or with a reference 0 (every
     deciding KPI ``not worse``), 1 (one ``worse``) or 4 (otherwise: ``inconclusive``)."""
     return OUTCOMES[rep["outcome"]] if "outcome" in rep else 0
 
 
-def _section(table, thresholds: dict, confidence: float, worst: int, rng, resamples: int,
+def _too_few(q: float, n: int) -> str:
+    """The note of a quantile without an interval: how many runs would give one."""
+    from .campaign_intervals import MIN_TAIL
+
+    need = math.ceil(MIN_TAIL / min(q, 1.0 - q) - 1e-9)
+    return f"{TOO_FEW} ({n} runs with a value; {need} give one)"
+
+
+def _section(table, thresholds: dict, confidence: float, worst: int,
              levels: list[float]) -> dict:
     """The report of one manoeuvre's rows (without the relative approach)."""
     ok = np.array(table["status"].to_pylist()) == "ok"
     out: dict = {"runs": table.num_rows, "counts": {}, "quantiles": {}, "exceedance": {},
                  "worst": {}, "relative": []}
-    idx = rng.integers(0, max(table.num_rows, 1), (resamples, table.num_rows))
     for kpi in KPIS:
         x = _column(table, kpi)
         out["counts"][kpi] = counts = _counts(table, kpi)
@@ -499,11 +461,11 @@ def _section(table, thresholds: dict, confidence: float, worst: int, rng, resamp
         out["quantiles"][kpi] = qs = {}
         for q in levels:
             level = _column_level(kpi, q)
-            est = float(np.nanquantile(x, level))
-            lo, hi = _interval(_row_quantiles(x[idx], level), confidence)
+            est, lo, hi = quantile_interval(x, level, confidence)
             qs[f"{q:g}"] = {"estimate": est, "low": lo, "high": hi, "column_level": level,
                             "tail_points": _beyond(kpi, x, est),
-                            "expected_tail_points": counts["values"] * (1.0 - q)}
+                            "expected_tail_points": counts["values"] * (1.0 - q),
+                            "note": "" if math.isfinite(lo) else _too_few(q, counts["values"])}
     # flags of results written before a criterion existed count as passed
     out["verdict_counts"] = {flag: int((~np.array(table[flag].to_pylist(), bool)[ok]).sum())
                              if flag in table.column_names else 0
@@ -526,35 +488,32 @@ def _section(table, thresholds: dict, confidence: float, worst: int, rng, resamp
 
 
 def _relative(table, ref_table, mode: str, quantile: float, confidence: float, margin: float,
-              deciding: tuple, rng, resamples: int) -> list[dict]:
+              deciding: tuple) -> list[dict]:
     """The relative approach for one manoeuvre: a :func:`_compare` entry per KPI that either
     family has a value of, and per deciding KPI."""
-    if mode == "paired":  # the run ids both hold, aligned; resampled jointly
-        ids, at, ref_at = np.intersect1d(np.array(table["run_id"].to_pylist()),
-                                         np.array(ref_table["run_id"].to_pylist()),
-                                         return_indices=True)
+    if mode == "paired":  # the run ids both hold, aligned
+        _, at, ref_at = np.intersect1d(np.array(table["run_id"].to_pylist()),
+                                       np.array(ref_table["run_id"].to_pylist()),
+                                       return_indices=True)
         table, ref_table = table.take(at), ref_table.take(ref_at)
-        idx = ref_idx = rng.integers(0, len(ids), (resamples, len(ids)))
-    else:
-        idx = rng.integers(0, table.num_rows, (resamples, table.num_rows))
-        ref_idx = rng.integers(0, ref_table.num_rows, (resamples, ref_table.num_rows))
     out = []
     for kpi in KPIS:
-        entry = _compare(kpi, table, ref_table, idx, ref_idx, quantile, confidence, margin)
+        entry = _compare(kpi, table, ref_table, mode == "paired", quantile, confidence, margin)
         entry["deciding"] = kpi in deciding
         if entry["deciding"] or entry["counts"]["values"] or entry["reference_counts"]["values"]:
             out.append(entry)
     return out
 
 
-def _compare(kpi: str, table, ref_table, idx, ref_idx, quantile: float, confidence: float,
+def _compare(kpi: str, table, ref_table, paired: bool, quantile: float, confidence: float,
              margin: float) -> dict:
     """Non-inferiority of one KPI's quantile against the reference.
 
     The worsening is ``w = d * (Q - Q_ref) / |Q_ref|`` (``d`` the KPI's worse direction,
-    ``Q`` the level-``quantile`` quantile in that direction); its percentile-bootstrap
-    interval [lo, hi] gives ``not worse`` (hi < margin), ``worse`` (lo > margin) or
-    ``inconclusive``.
+    ``Q`` the level-``quantile`` quantile in that direction); its interval [lo, hi] (from
+    Fieller's interval of ``Q / Q_ref``, :func:`~.campaign_intervals.compare_quantiles`)
+    gives ``not worse`` (hi < margin), ``worse`` (lo > margin) or ``inconclusive`` (the
+    interval holds the margin, or there is none: too few runs beyond the quantile).
 
     Returns
     -------
@@ -563,12 +522,14 @@ def _compare(kpi: str, table, ref_table, idx, ref_idx, quantile: float, confiden
         ``column_level``, ``family`` and ``reference`` (estimates) with ``family_interval``
         and ``reference_interval``, ``difference`` (family minus reference, in the unit) with
         ``difference_interval``, ``worsening`` (relative, 0.05 = 5 % worse) with
-        ``worsening_interval``, ``margin`` (relative) and ``margin_value`` (in the unit),
-        ``compared`` (both families have values), ``verdict``, ``counts`` and
-        ``reference_counts`` (:func:`_counts`, over the runs compared), ``tail_points``
-        (runs beyond the estimates: family, reference), ``expected_tail_points`` (n (1 - q)
-        of each), ``runs_needed`` (inconclusive: the runs that would decide at the observed
-        spread, family and reference; None otherwise) and ``note``.
+        ``worsening_interval``, ``correlation`` (of the two quantiles; 0 independent),
+        ``margin`` (relative) and ``margin_value`` (in the unit), ``compared`` (both
+        families have values), ``verdict``, ``counts`` and ``reference_counts``
+        (:func:`_counts`, over the runs compared), ``tail_points`` (runs beyond the
+        estimates: family, reference), ``expected_tail_points`` (n (1 - q) of each),
+        ``runs_needed`` (inconclusive: the runs that would decide at the observed spread,
+        family and reference; None otherwise) and ``note``. Intervals without enough runs
+        are (NaN, NaN).
     """
     d = KPIS[kpi][1]
     level = _column_level(kpi, quantile)
@@ -583,35 +544,37 @@ def _compare(kpi: str, table, ref_table, idx, ref_idx, quantile: float, confiden
         entry["note"] = ("no run of either family has a value" if not (nx or ny) else
                          f"no run of the {'family' if not nx else 'reference'} has a value")
         return entry
-    fx, fy = float(np.nanquantile(x, level)), float(np.nanquantile(y, level))
-    rx, ry = _row_quantiles(x[idx], level), _row_quantiles(y[ref_idx], level)
-    diff, diffs = fx - fy, rx - ry
-    worse_by, worse_reps = _worsening(d * diff, fy), _worsening(d * diffs, ry)
-    lo, hi = _interval(worse_reps, confidence)
+    c = compare_quantiles(x, y, level, confidence, paired)
+    fx, fy = c["family"][0], c["reference"][0]
+    worse_by = float(_worsening(d * (fx - fy), fy))
+    _, r_lo, r_hi = c["ratio"]
+    turn = d * (1.0 if fy > 0 else -1.0)  # w = turn (ratio - 1)
+    lo, hi = sorted((turn * (r_lo - 1.0), turn * (r_hi - 1.0))) if math.isfinite(r_lo) \
+        else (math.nan, math.nan)
     entry.update(compared=True, family=fx, reference=fy,
-                 family_interval=_interval(rx, confidence),
-                 reference_interval=_interval(ry, confidence),
-                 difference=diff, difference_interval=_interval(diffs, confidence),
-                 worsening=float(worse_by), worsening_interval=(lo, hi),
+                 family_interval=c["family"][1:], reference_interval=c["reference"][1:],
+                 difference=c["difference"][0], difference_interval=c["difference"][1:],
+                 worsening=worse_by, worsening_interval=(lo, hi), correlation=c["correlation"],
                  margin_value=margin * abs(fy),
                  tail_points=(_beyond(kpi, x, fx), _beyond(kpi, y, fy)),
                  expected_tail_points=(nx * (1.0 - quantile), ny * (1.0 - quantile)))
     notes = []
-    if min(nx, ny) * (1.0 - quantile) < 1.0:
-        notes.append(f"n (1 - q) = {min(nx, ny) * (1.0 - quantile):.2g} < 1: the quantile "
-                     "rests on the most extreme run and its interval is unreliable")
     if hi < margin:
         entry["verdict"] = "not worse"
     elif lo > margin:
         entry["verdict"] = "worse"
     else:
         entry["verdict"] = "inconclusive"
-        entry["runs_needed"] = _runs_needed(float(worse_by), lo, hi, margin,
-                                            table.num_rows, ref_table.num_rows)
-        if not (math.isfinite(lo) and math.isfinite(hi)):
-            notes.append("no bootstrap interval: too few runs with a value")
-        elif entry["runs_needed"] is None:
-            notes.append("the estimate lies on the margin: more runs alone do not decide")
+        if not (enough_runs(nx, level) and enough_runs(ny, level)):
+            notes.append(_too_few(quantile, min(nx, ny)))
+        elif not math.isfinite(lo):
+            notes.append("the reference's quantile is not told apart from 0: no relative "
+                         "interval")
+        else:
+            entry["runs_needed"] = _runs_needed(worse_by, lo, hi, margin, table.num_rows,
+                                                ref_table.num_rows)
+            if entry["runs_needed"] is None:
+                notes.append("the estimate lies on the margin: more runs alone do not decide")
     entry["note"] = "; ".join(notes)
     return entry
 
@@ -738,6 +701,13 @@ def _pct(x, sign: bool = True) -> str:
     return f"{100 * x:+.1f} %" if sign else f"{100 * x:.1f} %"
 
 
+def _iv(lo, hi, fmt, missing: str = f"({TOO_FEW})") -> str:
+    """``[lo, hi]``, or ``missing`` where there is no interval."""
+    if lo is None or hi is None or not (math.isfinite(lo) and math.isfinite(hi)):
+        return missing
+    return f"[{fmt(lo)}, {fmt(hi)}]"
+
+
 def format_report(rep: dict) -> str:
     """The report as text.
 
@@ -757,15 +727,15 @@ def format_report(rep: dict) -> str:
     lines += [f"warning: {w}" for w in rep.get("warnings", ())]
     for name, sec in rep["manoeuvres"].items():
         lines.append(f"manoeuvre {name} ({sec['runs']} runs), quantiles qP in the worse "
-                     f"direction (estimate [{100 * c:g} % bootstrap interval], tail: runs "
-                     "beyond it), over the runs with a value:")
+                     f"direction (estimate [{100 * c:g} % interval], tail: runs beyond it), "
+                     "over the runs with a value:")
         for kpi, counts in sec["counts"].items():
             head = f"  {kpi} [{_unit(kpi)}], {_direction_words(kpi)} ({_describe_counts(counts)})"
             qs = sec["quantiles"].get(kpi)
             if not qs:
                 lines.append(f"{head}: no quantile")
                 continue
-            cells = "  ".join(f"q{q}: {_g(v['estimate'])} [{_g(v['low'])}, {_g(v['high'])}] "
+            cells = "  ".join(f"q{q}: {_g(v['estimate'])} {_iv(v['low'], v['high'], _g)} "
                               f"tail {v['tail_points']}" for q, v in qs.items())
             lines.append(f"{head}: {cells}")
         vc = sec["verdict_counts"]
@@ -809,7 +779,7 @@ def _format_relative(rep: dict, entries: list[dict]) -> list[str]:
     lines = [f"  relative approach against {rep['reference']}: q{rep['quantile']:g} in the "
              f"worse direction, margin {_pct(rep['margin'], False)} of the reference's "
              f"quantile, {100 * rep['confidence']:g} % intervals",
-             f"    bootstrap: {p['mode']} ({p['reason']})"]
+             f"    runs: {p['mode']} ({p['reason']})"]
     for v in entries:
         vote = "" if v["deciding"] else " (shown, does not decide)"
         head = f"    {v['verdict']:<12}  {v['kpi']} [{v['unit']}], {_direction_words(v['kpi'])}"
@@ -821,8 +791,10 @@ def _format_relative(rep: dict, entries: list[dict]) -> list[str]:
         dlo, dhi = v["difference_interval"]
         wlo, whi = v["worsening_interval"]
         lines.append(f"{head}{vote}: {_g(v['family'])} vs {_g(v['reference'])}, family - "
-                     f"reference {v['difference']:+.4g} [{dlo:+.4g}, {dhi:+.4g}]")
-        more = (f"worsening {_pct(v['worsening'])} [{_pct(wlo)}, {_pct(whi)}] against the "
+                     f"reference {v['difference']:+.4g} "
+                     f"{_iv(dlo, dhi, '{:+.4g}'.format, '(no interval)')}")
+        more = (f"worsening {_pct(v['worsening'])} {_iv(wlo, whi, _pct, '(no interval)')} "
+                "against the "
                 f"margin {_pct(v['margin'], False)} ({v['margin_value']:.4g} {v['unit']}); "
                 f"{runs}; tail {v['tail_points'][0]} and {v['tail_points'][1]} runs")
         if v["runs_needed"] is not None:

@@ -124,7 +124,7 @@ def plant_samples(path, namespace: str, stamped: bool = False
             else:
                 continue
             t_ns = last_stamp_ns if stamped else log_ns
-            t = t_ns * 1e-9
+            t = t_ns / 1e9  # correctly rounded: 300_000_000 ns is 0.3 s as written
             if msg_type != expected:
                 raise BagError(path, topic, f"recorded as {msg_type or 'an unnamed type'}, not "
                                             f"{expected}: not the plant's topic")
@@ -140,7 +140,7 @@ def plant_samples(path, namespace: str, stamped: bool = False
             if topic in states:
                 if topic.endswith("vehicles/state"):
                     last_stamp_ns = stamp_ns
-                t = stamp_ns * 1e-9
+                t = stamp_ns / 1e9
                 for name, k in states[topic]:
                     element = ARRAYS[name]
                     value = np.asarray(values[k])

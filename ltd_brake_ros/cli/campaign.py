@@ -33,13 +33,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Summarise a results folder; with --against, compare it with a reference "
                     "family's folder (the relative approach of UIC 421).",
-        epilog="relative approach: for each KPI, the percentile-bootstrap interval of the\n"
-               "family's worsening of its --quantile against the reference (relative to the\n"
-               "reference's quantile, in the KPI's worse direction: peak_buff_kN is negative,\n"
-               "more negative is worse) gives 'not worse' (the interval lies below --margin),\n"
-               "'worse' (above it) or 'inconclusive' (it holds the margin). Two folders drawn\n"
-               "from the same seed whose runs are the same trains are resampled jointly\n"
-               "(paired), others independently.\n"
+        epilog="relative approach: for each KPI, the interval of the family's worsening of\n"
+               "its --quantile against the reference (relative to the reference's quantile,\n"
+               "in the KPI's worse direction: peak_buff_kN is negative, more negative is\n"
+               "worse) gives 'not worse' (the interval lies below --margin), 'worse' (above\n"
+               "it) or 'inconclusive' (it holds the margin, or fewer than 20 runs lie beyond\n"
+               "the quantile: no interval). Two folders drawn from the same seed whose runs\n"
+               "are the same trains are compared as paired runs, others as independent.\n"
                "exit status: 0 report (with --against: every deciding KPI not worse), 1 a\n"
                "deciding KPI worse, 4 none worse but one inconclusive, 2 bad input.")
     q.add_argument("dir", metavar="DIR", help="results folder")
@@ -51,7 +51,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="quantile the relative approach compares, in the KPI's worse "
                         "direction (default 0.99: the value 1 %% of the runs go beyond)")
     q.add_argument("--confidence", type=float, default=0.95, metavar="C",
-                   help="two-sided confidence of the bootstrap intervals (default 0.95; a "
+                   help="two-sided confidence of the intervals (default 0.95; a "
                         "verdict is a one-sided test at (1 - C) / 2)")
     q.add_argument("--margin", type=float, default=0.05, metavar="M",
                    help="non-inferiority margin: how much worse than the reference's quantile "
@@ -61,7 +61,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "peak_buff_kN; also stopping_distance_m, mean_adhesion, "
                         "max_adhesion_demand); the others are shown but do not decide")
     q.add_argument("--independent", action="store_true",
-                   help="resample the two families independently even when they are paired")
+                   help="compare the two families as independent samples even when they are "
+                        "paired")
     q.add_argument("--worst", type=int, default=5, metavar="N",
                    help="worst runs listed (default 5)")
     q.add_argument("--plots", metavar="DIR", help="write CDF and histogram PNGs here")
@@ -250,21 +251,15 @@ def rerun(args: argparse.Namespace) -> int:
 
 def report(args: argparse.Namespace) -> int:
     """Print the campaign report; with ``--against``, 0 every deciding KPI not worse, 1 one
-    worse, 4 otherwise (inconclusive)."""
+    worse, 4 otherwise (inconclusive). The report is the Python API's
+    (:class:`~ltd_brake_ros.analysis.campaign_results.CampaignResults`)."""
     _require_extra()
-    import math
-
-    from ..analysis.campaign_report import (as_json, campaign_report, exit_status,
-                                            format_report, parse_kpis, parse_thresholds)
+    from ..analysis.campaign_report import as_json, exit_status, format_report, parse_kpis
+    from ..analysis.campaign_report import parse_thresholds
+    from ..analysis.campaign_results import CampaignResults, check_options
     from ..inputs import InputError
 
-    if not 0.0 < args.quantile < 1.0:
-        raise InputError("--quantile", "", f"must be between 0 and 1, got {args.quantile}")
-    if not 0.5 <= args.confidence < 1.0:
-        raise InputError("--confidence", "", f"must be in [0.5, 1), got {args.confidence}")
-    if not (math.isfinite(args.margin) and 0.0 <= args.margin < 1.0):
-        raise InputError("--margin", "", f"must be in [0, 1) (a share of the reference's "
-                         f"quantile, 0.05 = 5 %), got {args.margin}")
+    check_options(quantile=args.quantile, confidence=args.confidence, margin=args.margin)
     positive_int(args.worst, "--worst")
     kpis = parse_kpis(args.kpi)
     if (args.kpi or args.independent) and args.against is None:
@@ -274,14 +269,16 @@ def report(args: argparse.Namespace) -> int:
         raise InputError("--force", "", "applies to --html FILE")
     if args.html is not None:  # refused before the report is computed
         check_output_file(args.html, "--html", force=args.force)
-    rep = campaign_report(args.dir, against=args.against,
-                          thresholds=parse_thresholds(args.threshold), quantile=args.quantile,
-                          confidence=args.confidence, margin=args.margin, kpis=kpis,
-                          independent=args.independent, worst=args.worst, plots=args.plots)
+    family = CampaignResults(args.dir)
+    against = CampaignResults(args.against) if args.against is not None else None
+    rep = family.report(against=against, thresholds=parse_thresholds(args.threshold),
+                        quantile=args.quantile, confidence=args.confidence, margin=args.margin,
+                        kpis=kpis, independent=args.independent, worst=args.worst,
+                        plots=args.plots)
     if args.html is not None:
         from ..analysis.campaign_html import write_html
 
-        rep["html"] = write_html(rep, args.html, against=args.against)
+        rep["html"] = write_html(rep, args.html, family=family, against=against)
     print(as_json(rep) if args.json else format_report(rep))
     if args.html is not None and not args.json:
         print(f"html: {args.html}")

@@ -213,6 +213,9 @@ def run(args: argparse.Namespace) -> int:
     spec = run_spec(args)
     if args.commands:
         return _run_script(args, spec)
+    if spec.speed_kmh <= 0.0:  # a command script may start at rest; a stop needs a speed
+        raise InputError("command line", "--speed-kmh", "an emergency stop needs a speed above "
+                         "0 km/h (a run of --commands may start at rest)")
     params, lut = spec.params, spec.lut
     if args.band is not None:
         for option, given in (("--record", args.record), ("--timeseries", args.timeseries)):
@@ -238,7 +241,8 @@ def run(args: argparse.Namespace) -> int:
                                 step_s=args.step_s, tolerance_m_s=tolerance(args),
                                 chunk_s=_chunk(rec, sampler, CHUNK_S), max_time_s=MAX_TIME_S,
                                 group=sampler is None and not rec.recording,
-                                on_chunk=_on_chunk(rec, sampler, events), progress=progress)
+                                on_chunk=_on_chunk(rec, sampler, events), progress=progress,
+                                on_start=sampler and sampler.start)
     res = summarize(sim, time.perf_counter() - start)
     _write_timeseries(args, sampler, sim, spec.speed_kmh)
     verdicts = sim.verdicts()
@@ -350,7 +354,8 @@ def _run_script(args: argparse.Namespace, spec) -> int:
                            spec.track, adhesion=_adhesion(args), rail=_rail(args),
                            step_s=args.step_s, tolerance_m_s=tolerance(args),
                            chunk_s=_chunk(rec, sampler, RECORD_CHUNK_S),
-                           on_chunk=_on_chunk(rec, sampler, events), progress=progress)
+                           on_chunk=_on_chunk(rec, sampler, events), progress=progress,
+                           on_start=sampler and sampler.start)
     wall = time.perf_counter() - start
     _write_timeseries(args, sampler, sim, spec.speed_kmh)
     snap = sim.snapshot()

@@ -91,7 +91,8 @@ def default_brake_params(consist) -> BrakeParams:
 def model_warnings(consist, params: BrakeParams, coupler=None) -> list[str]:
     """Where a run of ``consist`` leaves its models' validated ranges (empty: inside them).
 
-    The brake model's range (:func:`~ltd_brake_ros.physics.brakes.validity`), a note when no
+    Vehicles heavier per axle than the line categories (:func:`~.consist.axle_load_warnings`),
+    the brake model's range (:func:`~ltd_brake_ros.physics.brakes.validity`), a note when no
     brake model covers the train, and the coupler model's (its buffers' declared end force,
     :func:`~ltd_brake_ros.physics.couplers.validity`).
 
@@ -107,8 +108,9 @@ def model_warnings(consist, params: BrakeParams, coupler=None) -> list[str]:
     list of str
     """
     from ..physics import couplers
+    from .consist import axle_load_warnings
 
-    out = brakes.validity(consist, params)
+    out = axle_load_warnings(consist) + brakes.validity(consist, params)
     if out and all(brakes.validity(consist, load_brake_params(f)) for f in DEFAULT_FILES):
         out.append("no brake model covers this train: the brake pipe runs it (the default "
                    "beyond the empirical model's range); its results are an extrapolation")

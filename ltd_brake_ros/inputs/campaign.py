@@ -275,7 +275,9 @@ class Campaign:
     source : str
         The file.
     digest : str
-        SHA-256 of the file's bytes: a results folder belongs to one campaign.
+        SHA-256 of the file's meaning (:func:`document_digest` of its parsed content: a
+        comment or layout edit keeps it, a changed value does not): a results folder belongs
+        to one campaign.
     seed : int
         Campaign seed; run i draws from (seed, i).
     runs : int
@@ -305,8 +307,8 @@ class Campaign:
         folder keeps it as its ``campaign.yaml``.
     inputs : dict
         Every file the campaign reads (its own file, the shipped vehicle types, each model
-        variant's file), resolved path -> SHA-256 of its bytes: a results folder is pinned to
-        them.
+        variant's file), resolved path -> :func:`content_digest` of it: a results folder is
+        pinned to what they say.
     design : Design or None
         The designed experiment of ``grid``, ``sobol`` and ``morris``; None for a random
         sample.
@@ -448,6 +450,47 @@ def file_digest(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
+def document_digest(data: Any) -> str:
+    """SHA-256 of a parsed document's meaning: its canonical JSON (keys sorted), so that a
+    comment, the layout or the quoting of a file does not change it and any value does.
+
+    Parameters
+    ----------
+    data : object
+        A parsed YAML document (mappings, lists, numbers, text, booleans, null).
+
+    Returns
+    -------
+    str
+        Hexadecimal.
+
+    Examples
+    --------
+    >>> document_digest({"a": 1, "b": [2.5]}) == document_digest({"b": [2.5], "a": 1})
+    True
+    >>> document_digest({"a": 1}) == document_digest({"a": 2})
+    False
+    """
+    import json
+
+    text = json.dumps(data, sort_keys=True, default=str, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def content_digest(path: str | os.PathLike) -> str:
+    """:func:`document_digest` of a YAML input file (what it means, not its bytes).
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    str
+    """
+    return document_digest(load_yaml(path))
+
+
 def _variants(f: Fields, name: str, default: str, load, base: Path,
               files: dict | None = None) -> tuple:
     """``[{file, weight, ...}]`` model variants, each file loaded and validated once.
@@ -463,7 +506,7 @@ def _variants(f: Fields, name: str, default: str, load, base: Path,
         path = resolve_config_path(v.string("file"), base)
         params = load(path)
         if files is not None:
-            files[str(Path(path).resolve())] = file_digest(path)
+            files[str(Path(path).resolve())] = content_digest(path)
         for key in ("draft_strength_kN", "buff_strength_kN"):
             if v.has(key):
                 if name != "couplers":
@@ -579,7 +622,8 @@ def _manoeuvre(data: Any, source: str, path: str) -> Manoeuvre:
         f.reject_unknown({"name", "kind", "speed_kmh", "demand", "release_s", "duration_s"})
         duration = f.number("duration_s", lo=0.0, lo_open=True, hi=3600.0)
         release = f.number("release_s", duration, lo=0.0, lo_open=True, hi=duration)
-        return Manoeuvre(name, kind, _distribution(f, "speed_kmh", lo=0.0, hi=400.0),
+        # a service application brakes from speed, as an emergency stop (traction starts at rest)
+        return Manoeuvre(name, kind, _distribution(f, "speed_kmh", lo=1.0, hi=400.0),
                          f.number("demand", 1.0, lo=0.0, lo_open=True, hi=1.0), release, duration)
     f.reject_unknown({"name", "kind", "speed_kmh", "demand", "duration_s"})
     return Manoeuvre(name, kind, _distribution(f, "speed_kmh", lo=0.0, hi=400.0, default=0.0),
@@ -863,15 +907,11 @@ def campaign_from_mapping(data: Any, source: str, digest: str = "",
                      for i, x in enumerate(fams))
     base = base or Path.cwd()
     files = {}
+    digest = digest or document_digest(data)
     if Path(source).is_file():
-        files[str(Path(source).resolve())] = digest or file_digest(source)
-    else:  # built from a mapping: the document is the input
-        import json
-
-        digest = digest or hashlib.sha256(json.dumps(data, sort_keys=True, default=str)
-                                          .encode()).hexdigest()
+        files[str(Path(source).resolve())] = digest
     shipped = config_dir() / "vehicles.yaml"
-    files[str(shipped.resolve())] = file_digest(shipped)
+    files[str(shipped.resolve())] = content_digest(shipped)
     coupler_variants = _variants(f, "couplers", "couplers/buffer_hook_pugi.yaml",
                                  load_coupler_lut, base, files)
     brake_variants = _variants(f, "brake_params", "brake_params/paper.yaml", load_brake_params,
@@ -945,6 +985,5 @@ def load_campaign(path: str | os.PathLike) -> Campaign:
     """
     p = resolve_config_path(path)
     data = load_yaml(p)
-    digest = hashlib.sha256(p.read_bytes()).hexdigest()
-    return campaign_from_mapping(data, str(p), digest, p.parent)
+    return campaign_from_mapping(data, str(p), document_digest(data), p.parent)
 

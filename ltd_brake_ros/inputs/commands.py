@@ -69,6 +69,13 @@ class CommandScript:
         Length of the run [s]; ``None``: until the train stops after a brake command.
     source : str
         File the script came from.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_commands
+    >>> script = load_commands([{"t_s": 0, "brake_demand": 0.5}, {"t_s": 20, "emergency": True}])
+    >>> len(script.steps)
+    2
     """
 
     steps: tuple

@@ -189,6 +189,13 @@ class Consist:
         Index of the vehicle whose driver's brake valve vents the brake pipe, as the file
         names it (``venting_vehicle``); ``None``: the leading locomotive (see
         :attr:`venting_vehicle`).
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_consist
+    >>> train = load_consist("scenario_6")
+    >>> train.n, round(train.length_m, 1), train.vehicles[1].brake_position
+    (33, 423.9, 'P')
     """
 
     name: str
@@ -222,6 +229,31 @@ class Consist:
     def mass_kg(self) -> float:
         """Total weight on rails [kg]."""
         return sum(v.mass_kg for v in self.vehicles)
+
+    def _groups(self) -> list:
+        from .._display import groups
+
+        return groups(self.vehicles)
+
+    def __repr__(self) -> str:
+        parts = [f"{k} x {v.name}" if k > 1 else v.name for v, k in self._groups()]
+        shown = " + ".join(parts[:6]) + (f" + ... ({len(parts) - 6} more groups)"
+                                         if len(parts) > 6 else "")
+        return (f"Consist({self.name!r}: {self.n} vehicles, {self.length_m:.1f} m, "
+                f"{self.mass_kg / 1e3:.0f} t: {shown})")
+
+    def _repr_html_(self) -> str:
+        from .._display import html_table, number
+
+        rows = [(k, v.name, number(v.mass_kg / 1e3, ".1f"), v.axles,
+                 number(v.mass_kg / 1e3 / v.axles, ".2f"), v.brake_position,
+                 "none" if v.brake is None else v.brake.type,
+                 number(v.braked_weight_t, ".1f"))
+                for v, k in self._groups()[:30]]
+        return html_table(f"Consist {self.name}: {self.n} vehicles, {self.length_m:.1f} m, "
+                          f"{self.mass_kg / 1e3:.0f} t (head first)", rows,
+                          ["count", "type", "mass [t]", "axles", "axle load [t]",
+                           "brake position", "brake", "braked weight [t]"])
 
 
 _VEHICLE_FIELDS = {"type", "count", "description", "mass_t", "length_m", "axles",
@@ -425,6 +457,48 @@ def _consist(data: Any, source: str, shipped: dict[str, dict]) -> Consist:
     venting = top.integer("venting_vehicle", lo=0, hi=len(vehicles) - 1) \
         if top.has("venting_vehicle") else None
     return Consist(train_name, tuple(vehicles), str(source), venting)
+
+
+#: Largest axle load of the heaviest line category of EN 15528 (E) and of the one below it
+#: (D) [t]; not verified in the standard's text.
+AXLE_LOAD_E_T, AXLE_LOAD_D_T = 25.0, 22.5
+
+
+def axle_load_warnings(consist: Consist) -> list[str]:
+    """Vehicles whose axle load needs a category E line, or exceeds every line category.
+
+    EN 15528 classes lines by the axle load they carry: up to 22.5 t for category D, 25 t for
+    E, the heaviest (limits as commonly quoted, not verified in the standard's text).
+
+    Parameters
+    ----------
+    consist : Consist
+
+    Returns
+    -------
+    list of str
+        One sentence per group of like vehicles above 22.5 t an axle, naming the vehicle.
+
+    Examples
+    --------
+    >>> c = consist_from_mapping({"vehicles": [{"type": "Shimmns", "mass_t": 102.0}]}, "demo")
+    >>> axle_load_warnings(c)  # doctest: +ELLIPSIS
+    ['vehicle 0 (Shimmns): axle load 25.5 t (102 t on 4 axles) is beyond every EN 15528 ...']
+    """
+    out, i = [], 0
+    for v, k in consist._groups():
+        load = v.mass_kg / 1e3 / v.axles
+        where = f"vehicle {i}" if k == 1 else f"vehicles {i}-{i + k - 1}"
+        what = f"{where} ({v.name}): axle load {load:.1f} t ({v.mass_kg / 1e3:g} t on " \
+               f"{v.axles} axles)"
+        if load > AXLE_LOAD_E_T:
+            out.append(f"{what} is beyond every EN 15528 line category (E: {AXLE_LOAD_E_T:g} "
+                       "t; limits not verified)")
+        elif load > AXLE_LOAD_D_T:
+            out.append(f"{what} needs a category E line (EN 15528: above {AXLE_LOAD_D_T:g} t; "
+                       "limits not verified)")
+        i += k
+    return out
 
 
 def load_consist(path: str | os.PathLike) -> Consist:

@@ -38,6 +38,14 @@ class InputError(ValueError):
         Path of the offending field, e.g. ``vehicles[3].mass_t``; empty for the whole file.
     reason : str
         What is wrong, in words a user can act on.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import InputError, load_consist
+    >>> try:
+    ...     load_consist("scenario_99")
+    ... except InputError as exc:
+    ...     print(exc.source)  # doctest: +SKIP
     """
 
     def __init__(self, source: str, field: str, reason: str):

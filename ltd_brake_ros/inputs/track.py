@@ -26,6 +26,12 @@ class Track:
         Chainage of the head's front at t = 0 [m].
     source : str
         File the profile came from.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_track
+    >>> load_track().start_chainage_m  # level straight track
+    0.0
     """
 
     chainage_m: tuple[float, ...] = (0.0,)

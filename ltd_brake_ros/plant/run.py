@@ -50,7 +50,9 @@ def load_plant_inputs(consist: str, initial_speed_kmh: float, brake_params_file:
         Naming the parameter and the reason.
     """
     try:
-        return resolve_run_spec(consist, speed_kmh=initial_speed_kmh,
+        # -1: not set, the scenario's speed (the parameter's documented default)
+        speed = None if initial_speed_kmh == -1.0 else initial_speed_kmh
+        return resolve_run_spec(consist, speed_kmh=speed,
                                 params_file=brake_params_file, lut_file=coupler_lut_file,
                                 track_file=track_file, start_chainage_m=start_chainage_m)
     except RunSpecError as exc:

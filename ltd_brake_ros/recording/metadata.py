@@ -6,7 +6,8 @@ from ..verdicts import limits_metadata
 
 
 def model_warnings(sim) -> list[str]:
-    """Where the run of ``sim`` leaves its models' validated ranges (empty: inside them).
+    """Where the run of ``sim`` leaves its models' validated ranges, and vehicles too heavy
+    for a line category (empty: neither).
 
     Parameters
     ----------

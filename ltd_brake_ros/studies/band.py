@@ -202,7 +202,8 @@ def _kpi(name: str, members, nominal: int) -> BandKPI:
 def run_band(consist, speed_kmh: float, params=None, lut=None, track=None, *,
              band: ModelFormBand | None = None, step_s: float = 0.01,
              tolerance_m_s: float | None = DEFAULT_TOLERANCE_M_S, chunk_s: float = 1.0,
-             max_time_s: float = 600.0, on_nominal=None) -> tuple[BandResult, object]:
+             max_time_s: float = 600.0, on_nominal=None,
+             on_nominal_start=None) -> tuple[BandResult, object]:
     """An emergency stop under every member of a model-form band.
 
     Parameters
@@ -221,6 +222,8 @@ def run_band(consist, speed_kmh: float, params=None, lut=None, track=None, *,
         As for :func:`~ltd_brake_ros.studies.runs.emergency_run`.
     on_nominal : callable, optional
         Called with each snapshot of the nominal member's run (chunk by chunk).
+    on_nominal_start : callable, optional
+        Called with the nominal member's simulator before its first chunk.
 
     Returns
     -------
@@ -246,7 +249,8 @@ def run_band(consist, speed_kmh: float, params=None, lut=None, track=None, *,
             sim = emergency_run(consist, speed_kmh, bparams, cparams, track, step_s=step_s,
                                 tolerance_m_s=tolerance_m_s, chunk_s=chunk_s,
                                 max_time_s=max_time_s, group=not (is_nominal and on_nominal),
-                                on_chunk=on_nominal if is_nominal else None)
+                                on_chunk=on_nominal if is_nominal else None,
+                                on_start=on_nominal_start if is_nominal else None)
             peaks, table = sim.stop_peaks, sim.verdicts()
             if is_nominal:
                 nominal, nominal_sim = len(members), sim

@@ -39,6 +39,69 @@ class StopResult:
     Coupler numbers count from 1 behind the head; buff forces are reported as negative values.
     ``couplers_beyond_lut`` and ``max_beyond_lut_mm`` head ``out_of_range``, the summary of
     the couplers that went beyond the coupler characteristic's range with the worst three.
+
+    Attributes
+    ----------
+    consist : str
+        The train's name.
+    vehicles : int
+        Vehicles in the train.
+    train_length_m : float
+        Length over buffers [m].
+    train_mass_t : float
+        Weight on rails [t].
+    braked_weight_percent : float
+        The train's braked-weight percentage lambda (Eq. 11) [%].
+    initial_speed_kmh : float
+        Speed at the start of the run [km/h].
+    stopping_distance_m : float
+        The head's travel from the brake command to the stop [m].
+    stop_time_s : float
+        Time from the brake command to the stop [s].
+    peak_draft_kN : float
+        Largest draft (tension) coupler force [kN], positive.
+    peak_draft_coupler : int
+        Coupler that had it (1 behind the head).
+    peak_draft_time_s : float
+        When [s] (simulated time since the start).
+    peak_buff_kN : float
+        Largest buff (compression) coupler force [kN], negative.
+    peak_buff_coupler : int
+        Coupler that had it.
+    peak_buff_time_s : float
+        When [s].
+    couplers_beyond_lut : int
+        Couplers that went beyond the range of their characteristic (their forces there are
+        extrapolated).
+    max_beyond_lut_mm : float
+        The largest such excursion [mm] (0 when none).
+    wall_time_s : float
+        Wall time of the run [s] (the run's cost; varies between machines and runs).
+    real_time_factor : float
+        Simulated time over wall time [-].
+    steps : int
+        Accepted integration steps.
+    newton_iterations : int
+        Newton iterations over the run.
+    newton_iterations_per_step : float
+        Their mean per step [-].
+    max_newton_iterations : int
+        The most in one step.
+    rejected_steps : int
+        Steps the error control rejected and retried shorter.
+    smallest_step_s : float
+        Shortest accepted step [s].
+    out_of_range : CouplerExcursions
+        The couplers beyond their characteristic's range, the worst three with when and how
+        far (:class:`~ltd_brake_ros.simulator.CouplerExcursions`).
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import emergency_stop
+    >>> s = emergency_stop("scenario_6", 100.0).summary  # doctest: +SKIP
+    >>> s.stopping_distance_m, s.peak_draft_kN, s.peak_draft_coupler  # doctest: +SKIP
+    (489.2..., 173.4..., 1)
+    >>> s.as_dict()["peak_buff_kN"]  # doctest: +SKIP
     """
 
     consist: str
@@ -67,6 +130,19 @@ class StopResult:
     rejected_steps: int
     smallest_step_s: float
     out_of_range: CouplerExcursions
+
+    def __repr__(self) -> str:
+        return (f"StopResult({self.consist}: {self.stopping_distance_m:.1f} m in "
+                f"{self.stop_time_s:.2f} s from {self.initial_speed_kmh:g} km/h; peak draft "
+                f"{self.peak_draft_kN:.1f} kN @{self.peak_draft_coupler}, buff "
+                f"{self.peak_buff_kN:.1f} kN @{self.peak_buff_coupler}; {self.vehicles} "
+                "vehicles; every field: .as_dict())")
+
+    def _repr_html_(self) -> str:
+        from .._display import html_table, number
+
+        rows = [(k, number(v)) for k, v in self.as_dict().items() if not isinstance(v, dict)]
+        return html_table(f"StopResult {self.consist}", rows, ["field", "value"])
 
     def as_dict(self) -> dict:
         """Plain dict for JSON output."""
@@ -156,7 +232,8 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
                   chunk_s: float = 1.0, max_time_s: float = 600.0, group: bool = False,
                   on_chunk: Callable[[Snapshot], None] | None = None,
                   progress: Callable[[Progress], None] | None = None,
-                  adhesion=None, rail=None) -> Simulator:
+                  adhesion=None, rail=None,
+                  on_start: Callable[[Simulator], None] | None = None) -> Simulator:
     """An emergency stop: the brake applied at t = 0, chunks of ``chunk_s`` to the stop.
 
     The one loop of an emergency stop (:func:`emergency_stop`, ``ltd-brake simulate``,
@@ -204,6 +281,8 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
     rail : optional
         The rail condition the adhesion demand is judged against (default: ``adhesion``'s,
         else dry).
+    on_start : callable, optional
+        Called with the simulator before its first chunk (its state at t = 0).
 
     Returns
     -------
@@ -218,6 +297,8 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
     whole_steps(chunk_s, step_s, "chunk_s")
     sim = Simulator(consist, speed_kmh, params, lut or load_coupler_lut(), track, step_s=step_s,
                     tolerance_m_s=tolerance_m_s, adhesion=adhesion, rail=rail)
+    if on_start:
+        on_start(sim)
     start = time.perf_counter()
     commands: Commands | None = Commands(emergency=True)
     if group:
@@ -264,7 +345,8 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
                  tolerance_m_s: float | None = DEFAULT_TOLERANCE_M_S, chunk_s: float = 0.1,
                  max_time_s: float = 3600.0, on_chunk: Callable[[Snapshot], None] | None = None,
                  progress: Callable[[Progress], None] | None = None,
-                 adhesion=None, rail=None) -> Simulator:
+                 adhesion=None, rail=None,
+                 on_start: Callable[[Simulator], None] | None = None) -> Simulator:
     """Run a train under a timed command script.
 
     The inputs change at chunk boundaries (every ``chunk_s``), as they would when a controller
@@ -294,6 +376,8 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
     progress : callable, optional
         Called with a :class:`Progress` after each chunk (``fraction`` of the script's
         duration; None without one).
+    on_start : callable, optional
+        Called with the simulator before its first chunk (its state at t = 0).
 
     Returns
     -------
@@ -303,6 +387,8 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
     whole_steps(chunk_s, step_s, "chunk_s")
     sim = Simulator(consist, speed_kmh, params, lut or load_coupler_lut(), track, step_s=step_s,
                     tolerance_m_s=tolerance_m_s, adhesion=adhesion, rail=rail)
+    if on_start:
+        on_start(sim)
     end = script.duration_s if script.duration_s is not None else max_time_s
     end = math.ceil(end / step_s - 1e-6) * step_s  # the last chunk: whole steps too
     state: dict = {}

@@ -236,6 +236,13 @@ class Verdicts:
     ----------
     criteria : tuple of Criterion
         In :data:`CRITERIA` order.
+
+    Examples
+    --------
+    >>> run = emergency_stop("scenario_6", 100.0)  # doctest: +SKIP
+    >>> run.verdicts.status, run.verdicts["draft_strength"].status  # doctest: +SKIP
+    ('PASS', 'PASS')
+    >>> print("\\n".join(run.verdicts.describe()))  # doctest: +SKIP
     """
 
     criteria: tuple
@@ -310,6 +317,19 @@ class Verdicts:
         if self.non_physical:
             lines.append(self.non_physical_line)
         return lines
+
+    def __repr__(self) -> str:
+        return (f"Verdicts({self.status}: " + ", ".join(f"{c.name} {c.status or 'not assessed'}"
+                                                        for c in self.criteria)
+                + "; .describe() for the sources)")
+
+    def _repr_html_(self) -> str:
+        from .._display import html_table, number
+
+        rows = [(c.name, c.status or "not assessed", number(c.worst_value), c.worst_number,
+                 number(c.limit_min), c.origin) for c in self.criteria]
+        return html_table(f"Verdicts: {self.status}", rows,
+                          ["criterion", "status", "worst", "at", "limit (lowest)", "source"])
 
     def as_dict(self) -> dict:
         """JSON-serialisable."""

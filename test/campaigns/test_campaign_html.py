@@ -16,11 +16,19 @@ from ltd_brake_ros.studies.campaign_exec import run_campaign
 
 #: A campaign name that HTML must escape.
 NAME = "small <b>&amp;"
+#: A manoeuvre name with markup for HTML and for matplotlib's mathtext (an unbalanced formula).
+MANOEUVRE = "stop <i>$x^$</i> & 'co'"
+
+
+def _named(text: str) -> str:
+    """The campaign text with its manoeuvre named :data:`MANOEUVRE`."""
+    quoted = MANOEUVRE.replace("'", "''")
+    return text.replace("  - {kind: emergency,", f"  - {{name: '{quoted}', kind: emergency,")
 
 
 def _run(folder, name, edit=None, runs=20, sampling="monte_carlo"):
     path = write_campaign(folder, name=name, runs=runs, batch=10, sampling=sampling)
-    text = path.read_text()
+    text = _named(path.read_text())
     path.write_text(edit(text) if edit else text)
     run_campaign(load_campaign(path), folder / name)
     return folder / name
@@ -70,17 +78,23 @@ def test_html_report_is_self_contained(folders, tmp_path, capsys):
     assert text.count("<table>") >= 5
     for words in ("<h2>Summary</h2>", "<th>q0.5</th>", "<th>q0.99</th>", "Wilson interval",
                   "Exceedance curves", "Relative approach against reference",
-                  "bootstrap paired", "<th>worsening</th>", "peak_buff_kN",
+                  "runs paired", "<th>worsening</th>", "peak_buff_kN",
                   "stopping_distance_m"):
         assert words in text, words
     assert re.search(r"exit status [014]\)", text)
     # the worst runs and the command that reruns each
-    cmd = re.search(r"ltd-brake campaign rerun \S+ --runs (\d+) --manoeuvre emergency --out "
-                    r"\S+_reruns", text)
+    import html
+    import shlex
+
+    cmd = re.search(r"ltd-brake campaign rerun \S+ --runs (\d+) --manoeuvre "
+                    + re.escape(html.escape(shlex.quote(MANOEUVRE))) + r" --out \S+_reruns", text)
     assert cmd and f"<td class=\"l\">{cmd.group(1)}</td>" in text
     # text is escaped: the campaign's name appears only escaped
     assert "small &lt;b&gt;&amp;amp;" in text and "<b>&amp;" not in text.replace(
         "<b>peak", "")
+    # so is the manoeuvre's name, and its dollar signs are no formula in the figures
+    assert f"<h2>Manoeuvre {html.escape(MANOEUVRE)} (20 runs)</h2>" in text
+    assert "<i>" not in text
 
 
 def test_an_existing_file_is_replaced_only_with_force(folders, tmp_path, capsys):
@@ -118,3 +132,19 @@ def test_sensitivity_bars_of_a_sobol_campaign(folders, tmp_path):
     assert "<th>ST interval</th>" in text and '<td class="l">wagons</td>' in text
     images = _images(text)
     assert len(images) == 2 and all(i.startswith(b"\x89PNG") for i in images)
+
+
+def test_sensitivity_indices_in_python_are_the_reports(folders, capsys):
+    import json
+
+    from ltd_brake_ros import read_campaign
+
+    res = read_campaign(folders["sobol"])
+    table = res.sensitivity()
+    assert set(table.input) == {"k0", "wagons"} and {"S1", "ST_low", "ST_high"} <= set(table)
+    assert main(["campaign", "report", str(folders["sobol"]), "--json"]) == 0
+    sens = json.loads(capsys.readouterr().out)["sensitivity"]["manoeuvres"][MANOEUVRE]
+    row = table[(table.kpi == "peak_draft_kN") & (table.input == "k0")].iloc[0]
+    assert row.S1 == pytest.approx(sens["peak_draft_kN"]["indices"]["k0"]["S1"])
+    assert [row.ST_low, row.ST_high] == pytest.approx(
+        sens["peak_draft_kN"]["indices"]["k0"]["ST_interval"])

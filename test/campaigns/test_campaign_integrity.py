@@ -38,18 +38,38 @@ def test_manifest_pins_every_input_file_and_the_version(tmp_path):
     assert meta["package_version"]
 
 
-def test_resume_after_a_model_file_changed_is_refused_naming_it(tmp_path, capsys):
+def test_resume_after_a_cosmetic_edit_goes_on_and_after_a_changed_value_is_refused(
+        tmp_path, capsys):
     path = _campaign_with_own_coupler(tmp_path, runs=8, batch=2)
     c = load_campaign(path)
     out = tmp_path / "out"
     run_campaign(c, out)
-    (out / "batches" / "batch-0000003.parquet").unlink()
+    batch = out / "batches" / "batch-0000003.parquet"
+    batch.unlink()
     coupler = tmp_path / "pugi.yaml"
-    coupler.write_text(coupler.read_text() + "\n# edited\n")
+    text, model = path.read_text(), coupler.read_text()
+    # comments, blank lines and a key's quoting change nothing the files say: the run resumes
+    path.write_text("# the small campaign, commented\n" + text.replace("seed: 11", "seed: 11   # "
+                    "the trains").replace("name: small", "name: 'small'") + "\n\n")
+    coupler.write_text("# a copy of the shipped table\n" + model + "\n# edited\n")
+    assert main(["campaign", "run", str(path), "--out", str(out), "--quiet"]) == 0
+    assert "in 1 batches (0 failed), 3 batches already done" in capsys.readouterr().out
+    assert batch.exists()
+    # a value of the model file changed: refused, naming it, nothing mixed in
+    batch.unlink()
+    changed = model.replace("2850]  # loading", "2851]  # loading")
+    assert changed != model
+    coupler.write_text(changed)
+    assert load_campaign(path).inputs != c.inputs
     assert main(["campaign", "run", str(path), "--out", str(out), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "pugi.yaml changed" in err and "new --out" in err and len(err.splitlines()) == 1
-    assert not (out / "batches" / "batch-0000003.parquet").exists()  # nothing was mixed in
+    assert not batch.exists()
+    # a value of the campaign file changed: refused as another campaign
+    coupler.write_text(model)
+    path.write_text(text.replace("sd: 0.1", "sd: 0.11"))
+    assert main(["campaign", "run", str(path), "--out", str(out), "--quiet"]) == 2
+    assert "another campaign file" in capsys.readouterr().err and not batch.exists()
 
 
 def test_a_folder_without_manifest_is_never_adopted(tmp_path):

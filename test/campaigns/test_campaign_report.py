@@ -1,5 +1,5 @@
 """Campaign report: quantiles and intervals, missing values, exceedances, plots, the relative
-approach (paired and independent bootstrap, non-inferiority verdicts, exit statuses)."""
+approach (paired and independent runs, non-inferiority verdicts, exit statuses)."""
 from __future__ import annotations
 
 import json
@@ -11,14 +11,18 @@ import pytest
 from campaign_helpers import write_campaign
 
 from ltd_brake_ros.analysis import campaign_report as report_module
-from ltd_brake_ros.analysis.campaign_report import bootstrap_quantile, campaign_report
+from ltd_brake_ros.analysis import campaign_results as results_module
+from ltd_brake_ros.analysis.campaign_intervals import TOO_FEW
+from ltd_brake_ros.analysis.campaign_report import campaign_report
 from ltd_brake_ros.cli.main import main
 from ltd_brake_ros.inputs.campaign import load_campaign
 from ltd_brake_ros.studies.campaign_exec import PoolExecutor, read_results, run_campaign
 
-#: Quantile level of the relative-approach tests: 6 runs of 60 beyond it, so that it rests on
-#: more than the most extreme run.
+#: Quantile level of the relative-approach tests: 20 runs of 200 beyond it, the fewest that
+#: give an interval.
 Q = 0.9
+#: Runs of the relative-approach families.
+RUNS = 200
 
 
 def _run(folder, name, runs, edit=None, **kw):
@@ -43,7 +47,7 @@ def _entry(rep, kpi, manoeuvre="emergency") -> dict:
 def families(tmp_path_factory):
     """A slow family and a fast one (same trains, 30-50 against 60-70 km/h)."""
     folder = tmp_path_factory.mktemp("families")
-    return {name: _run(folder, name, 30, v_lo=lo, v_hi=hi)
+    return {name: _run(folder, name, 40, v_lo=lo, v_hi=hi)
             for name, lo, hi in (("slow", 30.0, 50.0), ("fast", 60.0, 70.0))}
 
 
@@ -55,9 +59,9 @@ def changes(tmp_path_factory):
     the reference from another seed; and from the same seed other trains (heavier wagons)."""
     folder = tmp_path_factory.mktemp("changes")
     return {
-        "reference": _run(folder, "reference", 60),
-        "harmful": _run(folder, "harmful", 60, lambda t: t.replace("mean: 2.7", "mean: 2.55")),
-        "null": _run(folder, "null", 60),
+        "reference": _run(folder, "reference", RUNS),
+        "harmful": _run(folder, "harmful", RUNS, lambda t: t.replace("mean: 2.7", "mean: 2.55")),
+        "null": _run(folder, "null", RUNS),
         "other_seed": _run(folder, "other_seed", 8, lambda t: t.replace("seed: 11", "seed: 12")),
         "other_trains": _run(folder, "other_trains", 8,
                              lambda t: t.replace("tare_t: 22.0", "tare_t: 23.0")),
@@ -84,7 +88,7 @@ def test_quantiles_and_exceedance_match_the_table(families, tmp_path):
     assert med["estimate"] == pytest.approx(np.median(x)) and med["low"] <= med["estimate"] \
         <= med["high"]
     e = sec["exceedance"]["stopping_distance_m"]
-    assert e["count"] == int((x > 150.0).sum()) and e["of"] == 30
+    assert e["count"] == int((x > 150.0).sum()) and e["of"] == 40
     assert e["interval"][0] <= e["probability"] <= e["interval"][1]
     # buff forces are negative: beyond -20 kN is below it, and q0.9 is the 0.1 quantile
     buff = _column(families["slow"], "peak_buff_kN")
@@ -106,36 +110,37 @@ def test_a_positive_buff_threshold_is_refused(families, capsys):
 
 def test_faster_trains_are_worse_on_stopping_distance(families, capsys):
     assert main(["campaign", "report", str(families["fast"]), "--against",
-                 str(families["slow"]), "--kpi", "stopping_distance_m"]) == 1
+                 str(families["slow"]), "--kpi", "stopping_distance_m", "--quantile",
+                 "0.5"]) == 1
     out = capsys.readouterr().out
-    # the same seed, but other speeds: not the same runs, resampled independently
-    assert "bootstrap: independent (same seed 11, but run 0 (emergency) differs in speed_kmh" \
+    # the same seed, but other speeds: not the same runs, independent samples
+    assert "runs: independent (same seed 11, but run 0 (emergency) differs in speed_kmh" \
         in out
     assert "worse         stopping_distance_m [m]" in out
     assert main(["campaign", "report", str(families["slow"]), "--against",
-                 str(families["slow"])]) == 0
+                 str(families["slow"]), "--quantile", "0.5"]) == 0
     out = capsys.readouterr().out
-    assert "bootstrap: paired" in out and out.count("not worse     ") == 5
+    assert "runs: paired" in out and out.count("not worse     ") == 4
     assert "relative approach: not worse" in out
 
 
-def test_paired_bootstrap_decides_where_independent_resampling_cannot(changes, capsys):
+def test_paired_runs_decide_where_independent_samples_cannot(changes, capsys):
     ref, harmful, null = changes["reference"], changes["harmful"], changes["null"]
     # the harmful change raises the peak draft force of the trains: far more of them than the
     # half (and three binomial standard deviations) that chance would give
     raised = int((_column(harmful, "peak_draft_kN") > _column(ref, "peak_draft_kN")).sum())
-    assert raised > 60 / 2 + 3 * math.sqrt(60 * 0.25)
+    assert raised > RUNS / 2 + 3 * math.sqrt(RUNS * 0.25)
     argv = ["campaign", "report", "--against", str(ref), "--quantile", str(Q)]
     assert main([*argv, str(harmful)]) == 1
     out = capsys.readouterr().out
-    assert "bootstrap: paired (same seed 11 and the same trains" in out
-    assert "in all 60 common runs" in out and "relative approach: worse" in out
+    assert "runs: paired (same seed 11 and the same trains" in out
+    assert f"in all {RUNS} common runs" in out and "relative approach: worse" in out
     assert main([*argv, str(null)]) == 0
     assert "relative approach: not worse" in capsys.readouterr().out
     for folder in (harmful, null):
         assert main([*argv, str(folder), "--independent"]) == 4
         out = capsys.readouterr().out
-        assert "bootstrap: independent (independent resampling requested)" in out
+        assert "runs: independent (independent comparison requested)" in out
         assert "relative approach: inconclusive" in out
         rep = campaign_report(folder, against=ref, quantile=Q, independent=True)
         assert {_entry(rep, k)["verdict"] for k in rep["deciding"]} == {"inconclusive"}
@@ -189,11 +194,11 @@ def test_inconclusive_verdicts_state_the_runs_that_would_decide(changes, capsys)
     assert v["verdict"] == "inconclusive"
     est, (lo, hi), m = v["worsening"], v["worsening_interval"], v["margin"]
     n, n_ref = v["runs_needed"]
-    assert n == n_ref  # both families of 60 runs, scaled alike
-    # the half-width on the margin's side shrinks as sqrt(60 / N): at N runs it just clears
+    assert n == n_ref  # both families of RUNS runs, scaled alike
+    # the half-width on the margin's side shrinks as sqrt(RUNS / N): at N runs it just clears
     # the margin, one run fewer it does not
     h = hi - est if est < m else est - lo
-    assert h * math.sqrt(60 / n) <= abs(est - m) < h * math.sqrt(60 / (n - 1))
+    assert h * math.sqrt(RUNS / n) <= abs(est - m) < h * math.sqrt(RUNS / (n - 1))
     main(["campaign", "report", str(changes["harmful"]), "--against",
           str(changes["reference"]), "--quantile", str(Q), "--independent"])
     assert (f"about {n} runs of the family and {n_ref} of the reference would decide at the "
@@ -262,6 +267,7 @@ def test_failed_runs_are_counted_apart(service, monkeypatch, capsys):
                  peak_draft_kN=None, peak_buff_kN=None, max_adhesion_demand=None)
     damaged = pa.Table.from_pylist(rows, schema=table.schema)
     monkeypatch.setattr(report_module, "read_results", lambda folder: (meta, damaged))
+    monkeypatch.setattr(results_module, "read_results", lambda folder: (meta, damaged))
     stop = _column(service, "stopping_distance_m")
     stopped = int(np.isfinite(stop[3:]).sum())
     no_stop = 97 - stopped
@@ -282,15 +288,21 @@ def test_failed_runs_are_counted_apart(service, monkeypatch, capsys):
         in out
 
 
-def test_bootstrap_interval_covers_the_true_quantile():
-    # the 0.9 quantile of U(0, 1) is 0.9; a 95 % interval from 400 draws covers it
-    rng = np.random.default_rng(3)
-    covered = 0
-    for _ in range(40):
-        x = rng.random(400)
-        _, lo, hi, _ = bootstrap_quantile(x, 0.9, 0.95, rng, resamples=300)
-        covered += lo <= 0.9 <= hi
-    assert covered >= 34  # 95 % of 40, less three binomial standard deviations (~4)
+def test_too_few_runs_beyond_the_quantile_give_no_interval_and_no_verdict(changes, capsys):
+    # 200 runs put 2 beyond q0.99: no interval of the quantiles, nor of their difference
+    ref, harmful = changes["reference"], changes["harmful"]
+    rep = campaign_report(harmful, against=ref, quantile=0.99)
+    q99 = rep["manoeuvres"]["emergency"]["quantiles"]["peak_draft_kN"]["0.99"]
+    assert math.isnan(q99["low"]) and q99["note"].startswith(TOO_FEW)
+    assert "2000 give one" in q99["note"]
+    for kpi in rep["deciding"]:
+        v = _entry(rep, kpi)
+        assert v["verdict"] == "inconclusive" and v["note"].startswith(TOO_FEW)
+        assert all(math.isnan(b) for b in (*v["worsening_interval"], *v["difference_interval"]))
+    assert main(["campaign", "report", str(harmful), "--against", str(ref)]) == 4
+    out = capsys.readouterr().out
+    assert f"q0.99: {q99['estimate']:.4g} ({TOO_FEW}) tail" in out
+    assert "(no interval) against the margin 5.0 %" in out and f"; {TOO_FEW} (" in out
 
 
 def test_report_of_a_folder_without_results_is_one_line(tmp_path, capsys):

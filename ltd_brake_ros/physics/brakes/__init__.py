@@ -252,6 +252,12 @@ class BrakeParams:
     friction : friction.Params
     thermal : thermal.Params
     source : str
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_brake_params
+    >>> p = load_brake_params()  # the paper's Table 3, K0 = 2.72
+    >>> p.pneumatic.t_fill_s     # doctest: +SKIP
     """
 
     pneumatic: Any

@@ -64,6 +64,18 @@ class Params:
         Declared end force of one side buffer [N] (file: ``buffer_end_force_kN``; NaN: not
         declared, :data:`.base.DEFAULT_BUFFER_END_FORCE_N` assumed): beyond twice it per
         coupling (both buffers of a side solid) the run is marked non-physical.
+    buff_scale, draft_scale : float
+        Scale of both curves in buff (deflection < 0) and in draft (deflection > 0) [-].
+    buff_hysteresis, draft_hysteresis : float
+        Scale of the gap between the loading and unloading curves in buff and in draft
+        (0: elastic) [-].
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_coupler
+    >>> lut = load_coupler("couplers/buffer_hook_pugi.yaml")
+    >>> lut.deflection_m[0] < 0.0 < lut.deflection_m[-1]
+    True
     """
 
     deflection_m: tuple[float, ...] = parameter(
