@@ -149,6 +149,16 @@ class StopRecord:
         The judgments of the stop (:mod:`~ltd_brake_ros.verdicts`): strength, travel and
         adhesion from the command to the stop's end (the couplers' recoil while settling
         included), holding and runaway from the standstill.
+
+    Examples
+    --------
+    >>> from ltd_brake_ros import load_consist, run_commands
+    >>> run = run_commands(load_consist("scenario_6"), 40.0, [   # doctest: +SKIP
+    ...     {"t_s": 0, "brake_demand": 0.6},
+    ...     {"t_s": 60, "brake_demand": 0.0, "traction": 1.0},
+    ...     {"t_s": 150, "traction": 0.0, "emergency": True}])
+    >>> [(s.command, round(s.stopping_distance_m, 1)) for s in run.stops]  # doctest: +SKIP
+    [('service', 106.6), ('emergency', 43.9)]
     """
 
     number: int

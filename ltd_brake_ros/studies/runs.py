@@ -58,6 +58,9 @@ class StopResult:
         The head's travel from the brake command to the stop [m].
     stop_time_s : float
         Time from the brake command to the stop [s].
+    settled_time_s : float or None
+        Since when the train has been settled at rest, every vehicle within 1 mm/s for at
+        least 2 s, the couplers' recoil over [s] (None: it did not settle within 60 s).
     peak_draft_kN : float
         Largest draft (tension) coupler force [kN], positive.
     peak_draft_coupler : int

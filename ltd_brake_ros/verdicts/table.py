@@ -311,6 +311,19 @@ class Verdicts:
     def __getitem__(self, name: str) -> Criterion:
         return next(c for c in self.criteria if c.name == name)
 
+    def __eq__(self, other) -> bool:
+        """The same table: every criterion's fields, a time that is no moment (NaN, a design
+        check's) equal to itself."""
+        return isinstance(other, Verdicts) and self._key() == other._key()
+
+    def __hash__(self) -> int:
+        return hash(self._key())
+
+    def _key(self) -> str:
+        import json
+
+        return json.dumps(self.as_dict(), sort_keys=True)
+
     def describe(self, most: int | None = 5) -> list[str]:
         """The table as text lines (per criterion the ``most`` worst exceedances)."""
         lines = [line for c in self.criteria for line in c.describe(most)]

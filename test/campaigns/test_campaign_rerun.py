@@ -3,10 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from campaign_helpers import SMALL
 
 from ltd_brake_ros.analysis.report import analyse
 from ltd_brake_ros.cli.main import main
+from ltd_brake_ros.inputs import InputError
 from ltd_brake_ros.inputs.campaign import load_campaign
 from ltd_brake_ros.physics.constants import STANDSTILL_M_S
 from ltd_brake_ros.recording.bag import bag_info, read_bag
@@ -184,13 +186,12 @@ def test_a_failing_run_leaves_a_complete_recording_up_to_the_failure(results, tm
 
 @pytest.mark.parametrize("step_s", [0.03, 0.007])
 def test_steps_that_do_not_divide_the_recording_interval(tmp_path, step_s):
-    # 1 s is 34 steps of 0.0294 s (recorded every step) or 143 of 0.00699 s (143 is prime):
-    # the sub-chunks are whole numbers of the campaign's steps, so the runs stay the same
+    # 0.5 s is no whole number of such steps: the runs' chunks would be taken in shorter
+    # steps and change the results, so the campaign is refused at load, naming the field
     path = write_mixed(tmp_path, "steps", 2, f"step_s: {step_s}\n")
-    c = load_campaign(path)
-    for row in run_one(c, 1):
-        got = rerun(c, 1, row["manoeuvre"], tmp_path / row["manoeuvre"])
-        np.testing.assert_equal([got[k] for k in KPIS], [row[k] for k in KPIS])
+    with pytest.raises(InputError, match=f"step_s: {step_s:g} s does not divide the 0.5 s "
+                                         "chunks"):
+        load_campaign(path)
 
 
 def test_the_campaign_is_the_one_that_ran(results, tmp_path, capsys):
