@@ -7,25 +7,29 @@ the available adhesion, not verified) and, as the bound a sliding wheelset canno
 k = 1 (the rail's whole adhesion, the brake force capped but never lower). The level ``low`` and
 k are stated assumptions, labelled so wherever they are printed.
 
-``python -m ltd_brake_ros.studies.low_adhesion`` prints the table of the documentation's
-wheel-slide section (scenario 6).
+``python -m ltd_brake_ros.studies.low_adhesion`` prints the tables of the documentation's
+wheel-slide page: scenario 6 on each condition, and :data:`TRAINS` on wet and low rails.
 """
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
 
-from ..inputs import get_scenario
+from ..inputs import get_scenario, load_consist
 from ..physics.brakes import adhesion
 from .runs import emergency_run
 
-__all__ = ["CONDITIONS", "MU_LEVELS", "LowAdhesionStop", "low_adhesion_stops", "main",
-           "report"]
+__all__ = ["CONDITIONS", "MU_LEVELS", "TRAINS", "LowAdhesionStop", "low_adhesion_stops",
+           "main", "report", "trains_report"]
 
 #: Constant adhesion levels of the study [-].
 MU_LEVELS = (0.12, 0.10, 0.07, 0.05)
 #: Named conditions run beside them.
 CONDITIONS = ("dry", "wet", "low")
+#: Trains of the second table: a scenario number or a shipped consist file, and the speed
+#: [km/h]: the paper's longest train from 100 and 50 km/h, and the mixed trains.
+TRAINS = ((6, 100.0), (12, 50.0), ("consists/mixed_heavy_front_light_rear.yaml", 100.0),
+          ("consists/mixed_light_front_heavy_rear.yaml", 100.0))
 
 
 @dataclass(frozen=True)
@@ -119,13 +123,52 @@ def report(rows: list[LowAdhesionStop], reference_m: float | None = None) -> str
     return "\n".join(lines)
 
 
+def trains_report(trains=TRAINS, conditions=("wet", "low")) -> str:
+    """Markdown: each train's stop without a condition and on each of ``conditions``.
+
+    Parameters
+    ----------
+    trains : iterable of (int or str, float), optional
+        Scenario numbers or consist files, with the initial speed [km/h].
+    conditions : iterable, optional
+
+    Returns
+    -------
+    str
+    """
+    names = " / ".join(("off", *conditions))
+    lines = [f"| train | V0 km/h | distance {names} m | peak draft {names} kN@coupler | "
+             f"peak buff {names} kN@coupler | vehicles slid, longest "
+             f"({' / '.join(str(c) for c in conditions)}) |",
+             "|---|---|---|---|---|---|"]
+    for train, speed in trains:
+        consist = get_scenario(train).consist() if isinstance(train, int) else \
+            load_consist(train)
+        runs = [emergency_run(consist, speed, adhesion=c) for c in (None, *conditions)]
+        peaks = [r.coupler_peaks() for r in runs]
+        slid = []
+        for r in runs[1:]:
+            slides = r.wheel_slides()
+            slid.append("none" if not slides else
+                        f"{len(slides)}, {max(x['duration_s'] for x in slides):.1f} s")
+        lines.append(
+            f"| {consist.name} | {speed:g} | "
+            + " / ".join(f"{r.stopping_distance_m:.1f}" for r in runs) + " | "
+            + " / ".join(f"{p.draft_N / 1e3:.0f}@{p.draft_coupler}" for p in peaks) + " | "
+            + " / ".join(f"{-p.buff_N / 1e3:.0f}@{p.buff_coupler}" for p in peaks) + " | "
+            + " / ".join(slid) + " |")
+    return "\n".join(lines)
+
+
 def main() -> None:
-    """Print :func:`report` for scenario 6."""
+    """Print :func:`report` for scenario 6, then :func:`trains_report`."""
     sc = get_scenario(6)
     off = emergency_run(sc.consist(), sc.speed_kmh)
     print(f"scenario 6 ({sc.consist().name}, {sc.speed_kmh:g} km/h), no adhesion cap: "
           f"{off.stopping_distance_m:.1f} m")
     print(report(low_adhesion_stops(6), off.stopping_distance_m))
+    print()
+    print(trains_report())
 
 
 if __name__ == "__main__":

@@ -124,7 +124,7 @@ def test_wet_rail_from_the_command_line(capsys, tmp_path):
 
     assert main(["simulate", "--scenario", "6", "--adhesion", "wet", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    # on a wet rail every wagon slides in the last ~2 s of the stop (demand up to ~0.22)
+    # on a wet rail every wagon locks in the last seconds of the stop (demand up to ~0.22)
     assert out["adhesion"] == "wet" and len(out["wheel_slides"]) == 32
     assert out["sliding_ratio"] == 0.4 and "not verified" in out["sliding_ratio_source"]
     assert main(["simulate", "--scenario", "6", "--adhesion", "wet"]) == 0
