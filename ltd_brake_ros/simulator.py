@@ -252,7 +252,7 @@ class Simulator:
         most at this speed times (force / holding force).
     adhesion : str, float or AdhesionCondition, optional
         The rail's adhesion condition for wheel slide (:mod:`.physics.brakes.adhesion`:
-        ``dry``, ``wet``, a number, or a curve from
+        ``dry``, ``wet``, ``low``, a number, or a curve from
         :func:`~ltd_brake_ros.inputs.adhesion.load_adhesion`); default: off, the brake force
         is never capped, as in the paper's method.
     rail : str, float or AdhesionCondition, optional

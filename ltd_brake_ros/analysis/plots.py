@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..physics.brakes.thermal import VALIDATION
 from ..recording.output import checked_output
 from .brake_pipe_plots import profiles_figure
 
@@ -141,7 +142,7 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
         mark_command(ax)
         ax.set_xlabel("time [s]")
         ax.set_ylabel("temperature [C]")
-        ax.set_title(f"Brake heat {title}".strip())
+        ax.set_title(f"Brake heat {title}".strip() + f" (model {VALIDATION})")
         ax.legend(loc="best", fontsize=8)
         save(fig, "brake_temperature.png")
     report.plots = paths

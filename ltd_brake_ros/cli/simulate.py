@@ -44,10 +44,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "ltd-brake report DIR analyses it")
     p.add_argument("--adhesion", metavar="COND",
                    help="model wheel slide: cap each vehicle's brake force at the rail's "
-                        "adhesion mu(v) m g, the wheels sliding beyond it: dry (Curtius-Kniffler "
-                        "7.5/(V+44)+0.161), wet (0.6 x dry), a number (constant mu), or a YAML "
-                        "file with speed_kmh, mu and source lists; default: off, as in the "
-                        "paper's method")
+                        "adhesion mu(v) m g; a brake that asks more locks its wheelsets, which "
+                        "then slide at 0.4 mu m g (not verified) until the brake's static "
+                        "friction falls below that: dry (Curtius-Kniffler 7.5/(V+44)+0.161), "
+                        "wet (0.6 x dry), low (0.47 x dry, 0.10 at 100 km/h, not verified), a "
+                        "number (constant mu), or a YAML file with speed_kmh, mu and source "
+                        "lists; default: off, as in the paper's method")
     p.add_argument("--band", metavar="FILE", nargs="?", const="",
                    help="also run the stop under every member of a model-form band (every "
                         "brake model x every coupler model of FILE, default the shipped "
@@ -264,7 +266,7 @@ def run(args: argparse.Namespace) -> int:
         out["startup_s"] = startup_s
         out["plain_python_s"] = sim.plain_python_s
         out["served_by"] = _served_by()
-        out["adhesion"] = sim.adhesion.name
+        out.update(sim.adhesion.as_dict())
         out["wheel_slides"] = sim.wheel_slides()
         out["warnings"] = model_warnings(sim)
         out.update(sim.brake_temperatures().as_dict())
@@ -376,7 +378,7 @@ def _run_script(args: argparse.Namespace, spec) -> int:
         "plain_python_s": sim.plain_python_s,
         "verdicts": sim.verdicts().as_dict(),
         "stops": [s.as_dict() for s in sim.stops],
-        "adhesion": sim.adhesion.name, "wheel_slides": sim.wheel_slides(),
+        **sim.adhesion.as_dict(), "wheel_slides": sim.wheel_slides(),
         "warnings": model_warnings(sim),
         **sim.brake_temperatures().as_dict(),
     }
@@ -417,7 +419,9 @@ def _print_slides(sim) -> None:
     if not sim.adhesion.on:
         return
     slides = sim.wheel_slides()
-    text = f"wheel slide      adhesion {sim.adhesion.name} ({sim.adhesion.source}): "
+    cond = sim.adhesion
+    text = (f"wheel slide      adhesion {cond.name} ({cond.source}), locked wheelsets slide at "
+            f"{cond.sliding_ratio:g} x mu ({cond.sliding_source}): ")
     if not slides:
         print(text + "no wheel slid")
         return

@@ -5,7 +5,7 @@ import os
 
 import numpy as np
 
-from ..physics.brakes.adhesion import AdhesionCondition
+from ..physics.brakes.adhesion import SLIDING_RATIO, AdhesionCondition
 from .schema import Fields, load_yaml, resolve_config_path
 
 __all__ = ["load_adhesion"]
@@ -13,7 +13,9 @@ __all__ = ["load_adhesion"]
 
 def load_adhesion(path: str | os.PathLike) -> AdhesionCondition:
     """Load an adhesion curve: ``speed_kmh`` (strictly increasing, from 0), ``mu`` (each in
-    (0, 1]) and ``source`` (where the values come from; required).
+    (0, 1]), ``source`` (where the values come from; required) and optionally
+    ``sliding_ratio`` (the sliding friction of locked wheelsets over mu, in (0, 1]; default
+    :data:`~ltd_brake_ros.physics.brakes.adhesion.SLIDING_RATIO`).
 
     Parameters
     ----------
@@ -30,7 +32,7 @@ def load_adhesion(path: str | os.PathLike) -> AdhesionCondition:
     """
     p = resolve_config_path(path)
     f = Fields(load_yaml(p), str(p))
-    f.reject_unknown({"name", "description", "source", "speed_kmh", "mu"})
+    f.reject_unknown({"name", "description", "source", "speed_kmh", "mu", "sliding_ratio"})
     speeds = f.numbers("speed_kmh")
     mu = f.numbers("mu")
     if len(speeds) < 1 or len(speeds) != len(mu):
@@ -42,5 +44,6 @@ def load_adhesion(path: str | os.PathLike) -> AdhesionCondition:
     source = f.string("source", "")
     if not source.strip():
         raise f.error("source", "missing: say where the curve comes from")
+    ratio = f.number("sliding_ratio", SLIDING_RATIO, lo=0.0, lo_open=True, hi=1.0)
     return AdhesionCondition(f.string("name", p.stem), np.array([np.array(speeds) / 3.6, mu]),
-                             source)
+                             source, ratio)

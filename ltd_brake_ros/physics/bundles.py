@@ -169,7 +169,11 @@ class KinematicState(NamedTuple):
         The same while slower, still moving forward (faster than the standstill speed).
     slide_time_s, slide_first_s : ndarray
         How long each vehicle's wheels slid in all [s] (brake force capped by the rail's
-        adhesion, :mod:`.brakes.adhesion`) and when they first did [s] (-1: never).
+        adhesion, or wheelsets locked, :mod:`.brakes.wheel_slide`) and when they first did [s]
+        (-1: never).
+    slide_locked : ndarray of bool
+        Each vehicle's wheelsets locked (sliding) at the end of the last step
+        (:mod:`.brakes.wheel_slide`).
     applied_work_J, applied_distance_m : ndarray
         Work of each vehicle's brake at the rails [J] (less what decelerated its rotating
         masses) and the distance it ran [m] while its brake was fully
@@ -226,6 +230,7 @@ class KinematicState(NamedTuple):
     peak_brake_slow_speed_m_s: np.ndarray
     slide_time_s: np.ndarray
     slide_first_s: np.ndarray
+    slide_locked: np.ndarray
     block_temperature_K: np.ndarray
     wheel_temperature_K: np.ndarray
     block_updated_K: np.ndarray
@@ -252,6 +257,7 @@ class KinematicState(NamedTuple):
                    np.zeros(nc), np.zeros(nc), np.full(nc, -1.0), np.full(nc, -1.0),
                    np.zeros(n), np.array([0.0, 0.0, 0.0, -1.0]), np.zeros(n), np.zeros(n),
                    *(np.zeros(n) for _ in range(6)), np.zeros(n), np.full(n, -1.0),
+                   np.zeros(n, np.bool_),
                    temp, temp.copy(), temp.copy(), temp.copy(), temp.copy(), np.zeros(n),
                    temp.copy(), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(2))
 
@@ -379,6 +385,7 @@ class _Step(NamedTuple):
     tol: np.ndarray
     res_a: np.ndarray
     fa_scale: np.ndarray
+    slide: np.ndarray  # sliding-friction factor of each vehicle over the step (wheel_slide)
     rcurve: np.ndarray
     resist: float
     v_stick: float
@@ -443,6 +450,7 @@ class _Workspace(NamedTuple):
     fgrade: np.ndarray
     rcurve: np.ndarray
     bh_step: np.ndarray
+    slide: np.ndarray
     work: _Work
     scratch: "_Scratch"
     save_fb: np.ndarray

@@ -34,7 +34,10 @@ with these safeguards:
 
 The brake model advances the block forces exactly over each step (:mod:`.brakes`); the friction
 law turns them into retarding forces, whose work heats the blocks and wheels
-(:mod:`.brakes.thermal`, advanced on its own grid of simulated time).
+(:mod:`.brakes.thermal`, advanced on its own grid of simulated time). With an adhesion
+condition each vehicle's wheelsets roll (the force capped at the adhesion) or are locked
+(sliding friction), a state decided between steps and fixed within each
+(:mod:`.brakes.wheel_slide`), so that a step's equations stay continuous and monotone.
 
 Everything is passed in named bundles (typing.NamedTuple of arrays and scalars, which numba
 compiles like structs): :class:`TrainModel` (compiled once), :class:`Inputs` (per chunk),
@@ -48,7 +51,7 @@ import math
 import numpy as np
 
 from . import brakes
-from .brakes import adhesion, friction, thermal
+from .brakes import friction, thermal, wheel_slide
 from .equations import (HAVE_NUMBA, jit_step, jit_step_inner, lut_segment, plain, plain_now,
                         renamed_copy, resistance_coefficients)
 from .bundles import (ACCEL_VALID, ADHESION_SPLIT_SPEED_M_S, CURVE, DEFAULT_NEWTON_RTOL,
@@ -242,7 +245,7 @@ def new_workspace(model, state, brake_state, options):
     fb = brake_state.force_N
     return _Workspace(
         np.empty(n), np.empty(n), np.empty(n), np.empty(n, np.bool_), np.empty(n, np.bool_),
-        np.empty(n), tol, res_a, np.empty(n), np.empty(n), np.empty(n), np.empty(1),
+        np.empty(n), tol, res_a, np.empty(n), np.empty(n), np.empty(n), np.empty(1), np.zeros(n),
         _Work(np.empty(n), np.empty(n), np.empty(nc), state.coupler_force_N, np.empty(n),
               np.zeros(nc, np.int64)),
         _Scratch(np.empty(n), np.empty(n), np.empty(n),
@@ -343,8 +346,9 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
                                      state.peak_brake_fast_speed_m_s)
     pk_slow, pk_slow_t, pk_slow_v = (state.peak_brake_slow_N, state.peak_brake_slow_time_s,
                                      state.peak_brake_slow_speed_m_s)
-    adh, weight = fr_arrays.adhesion, fr_arrays.weight_N
-    slide_on = adh.shape[1] > 0
+    # wheel slide (with an adhesion condition): each step's sliding factors, the locked flags
+    slide_on = fr_arrays.adhesion.shape[1] > 0
+    slide, locked = ws.slide, state.slide_locked
     heat_work, heat_dist = state.heat_work_J, state.heat_distance_m
     heat_clock = state.heat_clock_s
     slide_t, slide_first = state.slide_time_s, state.slide_first_s
@@ -355,7 +359,7 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
     save_next, save_extra, save_ftr = ws.save_next, ws.save_extra, ws.save_ftr
     lvl, lkind, nxt, extra = (brake_state.level, brake_state.level_kind, brake_state.next_event,
                               brake_state.extra)
-    s = _Step(xhat, vhat, bh_step, fx, train.meff_kg, tol, res_a, fa_scale, rcurve,
+    s = _Step(xhat, vhat, bh_step, fx, train.meff_kg, tol, res_a, fa_scale, slide, rcurve,
               train.resist, v_stick)
     retried = False  # the step being tried follows a rejection
     local = adaptive and options.local_steps and n >= LOCAL_MIN_VEHICLES
@@ -384,6 +388,8 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
             for i in range(n):
                 fx[i] = fext[i] + ftr[i] + fgrade[i]
             friction.force_scales(kind, blocks, arrangement, mu_disc, fb, fa_scale)
+            if slide_on and wheel_slide.step_factors(locked, v, fa_scale, fr_arrays, slide):
+                hp = 0.0  # a wheelset rolls again: its force jumps at the step's start
             w_ratio, c1, c2, beta = _bdf2(hs, hp)
             bh = beta * hs
             for i in range(n):
@@ -456,13 +462,17 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
                 x[i] = xhat[i] + bh * u[i]
                 v[i] = u[i]
                 fbrake[i] = fair[i]
-                # the brake's work heats its blocks and wheels (brakes.thermal)
+                # the brake's work heats its blocks and wheels (brakes.thermal), but not
+                # while they are locked: the blocks do not rub
                 ran = abs(x[i] - xp[i])
-                heat_work[i] += fair[i] * ran
+                if not (slide_on and slide[i] > 0.0):
+                    heat_work[i] += fair[i] * ran
                 heat_dist[i] += ran
-                if slide_on and u[i] > v_stick and fair[i] > 0.0:
-                    mu, _dmu = adhesion.mu_of(adh, u[i])
-                    if fair[i] >= mu * weight[i] * (1.0 - 1e-12):  # capped: sliding
+                if slide_on:
+                    slid, changed = wheel_slide.after_step(i, abs(u[i]), fair[i], slide,
+                                                           fr_arrays, v_stick, locked)
+                    kink |= changed  # its force jumps at the next step's start
+                    if slid:
                         slide_t[i] += hs
                         if slide_first[i] < 0.0:
                             slide_first[i] = tc - hs

@@ -225,9 +225,11 @@ def _refine(lo, hi, h, tc, hs, hp, first_factor, model, state, ws, s, u, options
                              tr.fair[a:b + 1], tr.segment[a:b]))
     frw = friction.FrictionArrays(fr.kind[a:b + 1], fr.blocks[a:b + 1], fr.arrangement[a:b + 1],
                                   fr.mu_disc[a:b + 1], fr.force_max_N[a:b + 1],
-                                  fr.full_scale_N[a:b + 1], fr.weight_N[a:b + 1], fr.adhesion)
+                                  fr.full_scale_N[a:b + 1], fr.weight_N[a:b + 1], fr.adhesion,
+                                  fr.sliding_ratio)
+    # the wheelsets' slide states are the whole train's step's (held, like its forces)
     step = _Step(wxhat, wvhat, loc.bh, wfx, wmeff, wtol, s.res_a[a:b + 1], s.fa_scale[a:b + 1],
-                 s.rcurve[a:b + 1], s.resist, s.v_stick)
+                 s.slide[a:b + 1], s.rcurve[a:b + 1], s.resist, s.v_stick)
     wfc = work.fc
     for k in range(m):
         g = a + k

@@ -15,13 +15,15 @@ from .bundles import NEWTON_FAILED, NOT_FINITE, OK
 
 
 @jit_inline
-def _retarding(i, speed, res_a, rcurve, resist, kind, fa_scale, adh, weight):
+def _retarding(i, speed, res_a, rcurve, resist, kind, fa_scale, adh, weight, slide):
     """Brake force, running + curve resistance (magnitudes, N) and d(total)/d(speed).
 
     ``res_a`` holds the Eq. 2 coefficients per vehicle; ``fa_scale`` the brake force per unit
     of Karwatzki's speed factor (blocks) or the disc brake force, fixed within a step; ``adh``
-    the rail's adhesion table (empty: no cap), which caps the brake force at mu(v) m g
-    (``weight``: m g) when the wheels would slide.
+    the rail's adhesion table (empty: no cap), which caps the brake force of rolling wheelsets
+    at mu(v) m g (``weight``: m g); ``slide`` the step's sliding factor k of locked wheelsets
+    (0: rolling), whose force is k mu(v) m g (:mod:`.brakes.wheel_slide`). Either is a
+    continuous function of the speed within a step.
     """
     v_kmh = KMH_PER_MS * speed
     fr = (res_a[i, 0] + (res_a[i, 1] + res_a[i, 2] * v_kmh) * v_kmh + rcurve[i]) * resist
@@ -29,7 +31,9 @@ def _retarding(i, speed, res_a, rcurve, resist, kind, fa_scale, adh, weight):
     fa, dfa = friction.retarding_force(kind[i], speed, fa_scale[i])
     if adh.shape[1] > 0 and fa > 0.0:
         mu, dmu = adhesion.mu_of(adh, speed)
-        if fa > mu * weight[i]:  # the wheels slide: sliding friction, the available adhesion
+        if slide[i] > 0.0:  # locked: the rail's sliding friction
+            fa, dfa = slide[i] * mu * weight[i], slide[i] * dmu * weight[i]
+        elif fa > mu * weight[i]:  # rolling at the adhesion limit
             fa, dfa = mu * weight[i], dmu * weight[i]
     return fa, fr, dfa + dfr
 
@@ -97,6 +101,7 @@ def _residual(u, s, cp, fr_arrays, w):
     # bundle fields bound once: the loops below then touch plain arrays only
     xhat, vhat, bh, fx, meff, tol = s.xhat, s.vhat, s.bh[0], s.fx, s.meff, s.tol
     res_a, fa_scale, rcurve, resist, v_stick = s.res_a, s.fa_scale, s.rcurve, s.resist, s.v_stick
+    slide = s.slide
     kind, adh, weight = fr_arrays.kind, fr_arrays.adhesion, fr_arrays.weight_N
     model, table, coef = cp.model, cp.table, cp.coef
     g, diag, cj, fc, fair = w.g, w.diag, w.cj, w.fc, w.fair
@@ -118,7 +123,8 @@ def _residual(u, s, cp, fr_arrays, w):
         if i > 0:
             g0 -= fc[i - 1]
         spd = abs(u[i])
-        fa, fr, dr = _retarding(i, spd, res_a, rcurve, resist, kind, fa_scale, adh, weight)
+        fa, fr, dr = _retarding(i, spd, res_a, rcurve, resist, kind, fa_scale, adh, weight,
+                                slide)
         total = fa + fr
         if spd > v_stick:
             sg = 1.0 if u[i] > 0.0 else -1.0

@@ -20,7 +20,7 @@ from scipy.linalg import expm
 
 from ..inputs import BrakeParams, Consist, Track, load_brake_params
 from ..inputs.consist import consist_from_mapping
-from ..physics.brakes.thermal import ThermalArrays
+from ..physics.brakes.thermal import VALIDATION, ThermalArrays
 from ..physics.constants import G, KMH_PER_MS
 from ..physics.equations import resistance_N
 from ..simulator import Commands, Simulator
@@ -290,6 +290,8 @@ def report(runs: list[DragBraking], arrays: ThermalArrays) -> str:
     gross = AXLE_LOAD_T / 2 * 1e3 * G * -GRADIENT_PERMILLE / 1e3
     nominal = response(arrays, 0, gross * v_ref, v_ref, DISTANCE_M / v_ref)
     lines = [
+        f"heat model {VALIDATION}: no published drag-braking case with rim temperatures "
+        "was found to check it against; no fade (no sourced friction law)",
         f"wheel share gamma {arrays.wheel_share[0]:.3f}; per wheel: blocks "
         f"{arrays.block_capacity_J_K[0] / 1e3:.1f} kJ/K, wheel "
         f"{arrays.wheel_capacity_J_K[0] / 1e3:.0f} kJ/K, contact {arrays.contact_W_K[0]:.1f} W/K, "

@@ -25,6 +25,7 @@ def test_the_report_finds_the_peaks_the_run_printed(tmp_path, capsys):
         assert heat[f"peak_{part}_temperature_vehicle"] == \
             run[f"peak_{part}_temperature_vehicle"]
     assert heat["ambient_temperature_K"] == run["ambient_temperature_K"]
+    assert heat["heat_model"] == run["heat_model"] == "not validated"
     # and judges them as the run did: the same status, the peak within 1 K on the same vehicle
     ours, theirs = ({c["criterion"]: c for c in r["verdicts"]["criteria"]}["wheel_temperature"]
                     for r in (report, run))

@@ -90,6 +90,9 @@ class FrictionArrays(NamedTuple):
     adhesion : ndarray, shape (2, k)
         The rail's available adhesion, speed [m/s] and mu [-] (:mod:`.adhesion`); k = 0: the
         brake force is not capped (no wheel slide).
+    sliding_ratio : float
+        Sliding friction of a locked wheelset over the available adhesion [-]
+        (:mod:`.wheel_slide`).
     """
 
     kind: np.ndarray
@@ -100,6 +103,7 @@ class FrictionArrays(NamedTuple):
     full_scale_N: np.ndarray
     weight_N: np.ndarray
     adhesion: np.ndarray
+    sliding_ratio: float
 
 
 def compile(consist, params: Params, adhesion=None) -> FrictionArrays:  # noqa: A001
@@ -151,9 +155,10 @@ def compile(consist, params: Params, adhesion=None) -> FrictionArrays:  # noqa: 
     full_scale = np.array([force_scale(kind[i], blocks[i], arrangement[i], mu_disc[i],
                                        force_max[i]) for i in range(n)], float)
     weight = np.array([v.mass_kg for v in consist.vehicles], float) * G
-    table = (adhesion if adhesion is not None else adhesion_module.OFF).table
+    cond = adhesion if adhesion is not None else adhesion_module.OFF
     return FrictionArrays(kind, blocks, arrangement, mu_disc, force_max, full_scale, weight,
-                          np.ascontiguousarray(table, dtype=float))
+                          np.ascontiguousarray(cond.table, dtype=float),
+                          float(cond.sliding_ratio))
 
 
 @jit_inline

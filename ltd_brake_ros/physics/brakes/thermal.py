@@ -34,6 +34,9 @@ found: Karwatzki's law, Eq. 9, has none, and TrainDy has no block thermal model)
 out overestimates the wheel's temperature) and the temperature gradients inside the wheel
 (T_w is the wheel's mean temperature; its tread and rim are hotter). Disc-braked and unbraked
 vehicles carry no temperature (NaN).
+
+Not validated (:data:`VALIDATION`, printed with every result): no published drag-braking case
+with measured rim temperatures (30-45 min at 30-50 kW per wheel) was found to check it against.
 """
 from __future__ import annotations
 
@@ -46,8 +49,12 @@ import numpy as np
 from ..equations import jit_inline, jit_step_inner
 from ..parameters import parameter
 
-__all__ = ["Params", "Peaks", "ThermalArrays", "advance", "compile", "current",
+__all__ = ["Params", "Peaks", "ThermalArrays", "VALIDATION", "advance", "compile", "current",
            "initial_temperatures", "speed_coefficient", "wheel_share"]
+
+#: The model's validation, printed and written with its results: no published drag-braking
+#: case with numbers (rim temperatures after 30-45 min at 30-50 kW per wheel) was found.
+VALIDATION = "not validated"
 
 # --- materials and air: every constant with its source and confidence
 
@@ -375,7 +382,8 @@ class Peaks:
         return cls(**out, ambient_K=float(ambient_K))
 
     def as_dict(self) -> dict:
-        """JSON-serialisable, flat keys with units (None where there is no block brake)."""
+        """JSON-serialisable, flat keys with units (None where there is no block brake), and
+        ``heat_model``: :data:`VALIDATION`."""
         def num(x):
             return x if math.isfinite(x) else None
         return {"peak_block_temperature_K": num(self.block_K),
@@ -386,13 +394,15 @@ class Peaks:
                 "peak_wheel_temperature_vehicle": None if self.wheel_vehicle < 0
                 else self.wheel_vehicle,
                 "peak_wheel_temperature_time_s": num(self.wheel_time_s),
-                "ambient_temperature_K": num(self.ambient_K)}
+                "ambient_temperature_K": num(self.ambient_K),
+                "heat_model": VALIDATION}
 
     def describe(self) -> str:
-        """One line: the hottest blocks and wheel (in C), which vehicle, when."""
+        """One line: the hottest blocks and wheel (in C), which vehicle, when; the model
+        :data:`VALIDATION`."""
         if self.block_vehicle < 0:
             return "no vehicle with block brakes"
         return (f"blocks {self.block_K - 273.15:.0f} C at vehicle {self.block_vehicle} "
                 f"(t = {self.block_time_s:.1f} s), wheels {self.wheel_K - 273.15:.0f} C at "
                 f"vehicle {self.wheel_vehicle} (t = {self.wheel_time_s:.1f} s); air "
-                f"{self.ambient_K - 273.15:.0f} C")
+                f"{self.ambient_K - 273.15:.0f} C; heat model {VALIDATION}")
