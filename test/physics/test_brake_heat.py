@@ -164,7 +164,8 @@ def test_a_wheel_hotter_than_the_limit_warns():
     assert row.worst_value == pytest.approx(sim.brake_temperatures().wheel_K)
     d = row.as_dict()
     assert d["limit_min_K"] == WHEEL_TEMPERATURE_LIMIT_K and d["exceedances"][0]["vehicle"] == 0
-    assert "not verified" in row.origin or "no limit verified" in row.origin
+    assert row.origin.startswith("indicative") and "not a verified limit" in row.origin
+    assert "not validated" in row.origin  # nor is the heat model
 
 
 def test_simulate_json_carries_the_hottest_blocks_down_the_hump(capsys):

@@ -172,10 +172,11 @@ def test_eq6_delay_grows_with_distance_from_head():
     dist = 19.42 / 2 + 9 * 12.64 + 12.64 / 2
     assert sim.brake_delay_s[-1] == pytest.approx(1.0 + dist / 200.0)
     t_on = sim.brake_delay_s[-1]
-    sim.advance(t_on - 0.005, Commands(emergency=True))
-    assert sim.snapshot().block_force_N[-1] == 0.0
+    # the last whole step before the command reaches it, then the step that passes it
+    sim.advance(math.floor(t_on / 0.01) * 0.01, Commands(emergency=True))
+    assert sim.time_s < t_on and sim.snapshot().block_force_N[-1] == 0.0
     sim.advance(0.01)
-    assert sim.snapshot().block_force_N[-1] > 0.0
+    assert sim.time_s > t_on and sim.snapshot().block_force_N[-1] > 0.0
 
 
 # ----------------------------------------------------------------------------- Eq. 11
