@@ -58,9 +58,15 @@ VEHICLE_QUANTITIES = {
     "block_temperature_K": ("K", "brake-block temperature, lumped (NaN: no block brakes)"),
     "wheel_temperature_K": ("K", "wheel (tread and rim) temperature, lumped (NaN: no block "
                                  "brakes)"),
+    "brake_pipe_pressure_Pa": ("Pa", "brake-pipe pressure at the vehicle, gauge (the brake-pipe "
+                                     "model only)"),
+    "brake_cylinder_pressure_Pa": ("Pa", "brake-cylinder pressure, gauge (the brake-pipe model "
+                                         "only)"),
 }
-#: Quantities a snapshot carries among its extras rather than as fields.
-_EXTRAS = ("block_temperature_K", "wheel_temperature_K")
+#: Quantities a snapshot carries among its extras rather than as fields (the pressures only
+#: where the brake model has them: a time series holds those its run had).
+_EXTRAS = ("block_temperature_K", "wheel_temperature_K", "brake_pipe_pressure_Pa",
+           "brake_cylinder_pressure_Pa")
 #: Per-coupler quantities of a time series: name -> (unit, description).
 COUPLER_QUANTITIES = {
     "coupler_force_N": ("N", "coupler force, draft (tension) positive, buff negative"),
@@ -506,7 +512,7 @@ class _Sampler:
 
     def __init__(self):
         self.t: list[int] = []
-        self.v: dict[str, list] = {k: [] for k in VEHICLE_QUANTITIES}
+        self.v: dict[str, list] | None = None  # the quantities of the first snapshot
         self.c: list = []
 
     def start(self, sim: Simulator) -> None:
@@ -514,6 +520,8 @@ class _Sampler:
         self(sim.snapshot())
 
     def __call__(self, snap: Snapshot) -> None:
+        if self.v is None:
+            self.v = {k: [] for k in VEHICLE_QUANTITIES if k not in _EXTRAS or k in snap.extras}
         self.t.append(_stamp_ns(snap.time_s))
         for k, a in self.v.items():
             a.append(np.array(snap.extras[k] if k in _EXTRAS else getattr(snap, k), float))
@@ -523,7 +531,7 @@ class _Sampler:
         n = sim.n
         return TimeSeries(_seconds(self.t),
                           {k: np.array(a, float).reshape(len(self.t), n)
-                           for k, a in self.v.items()},
+                           for k, a in (self.v or {}).items()},
                           {"coupler_force_N": np.array(self.c, float).reshape(
                               len(self.t), max(n - 1, 0))},
                           [v.name for v in sim.consist.vehicles], attrs)

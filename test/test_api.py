@@ -365,3 +365,24 @@ def test_typical_mistakes_are_one_line_or_taken_as_meant(capsys):
         "needs a category E line" in lines[0]
     assert "vehicle 2 (Shimmns): axle load 25.5 t" in lines[1] and \
         "beyond every EN 15528 line category" in lines[1]
+
+
+def test_a_brake_pipe_run_carries_its_pressures_in_its_time_series(tmp_path):
+    from ltd_brake_ros import emergency_stop, load_brake_params, load_consist
+    from ltd_brake_ros.cli.main import main
+
+    pipe = load_brake_params("brake_params/uic_brake_pipe.yaml")
+    run = emergency_stop(load_consist("scenario_1"), 100.0, params=pipe)
+    ts = run.timeseries
+    p, c = ts.vehicles["brake_pipe_pressure_Pa"], ts.vehicles["brake_cylinder_pressure_Pa"]
+    # charged at 5 bar, vented by the emergency: the head's pipe empties, every cylinder fills
+    assert p[0] == pytest.approx(5e5, rel=1e-3) and p[-1, 0] < 0.5e5
+    assert np.all(c[0] == 0.0) and np.all(c[-1, 1:] > 3e5)
+    assert run.to_xarray().brake_cylinder_pressure_Pa.attrs["units"] == "Pa"
+    # the paper's model has no pipe: no such quantity, rather than zeros
+    assert "brake_pipe_pressure_Pa" not in emergency_stop(
+        load_consist("scenario_1"), 100.0).timeseries.vehicles
+    out = tmp_path / "pipe.csv"
+    assert main(["simulate", "--scenario", "1", "--params", "brake_params/uic_brake_pipe.yaml",
+                 "--timeseries", str(out)]) == 0
+    assert ",brake_cylinder_pressure_Pa,Pa," in out.read_text()
