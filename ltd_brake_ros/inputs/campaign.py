@@ -312,6 +312,9 @@ class Campaign:
     design : Design or None
         The designed experiment of ``grid``, ``sobol`` and ``morris``; None for a random
         sample.
+    band : ModelFormBand or None
+        Each emergency stop also runs this model-form band (the ``band`` key: true for the
+        shipped one, or a band file): its verdict and each key number's ends are columns.
     """
 
     name: str
@@ -333,6 +336,7 @@ class Campaign:
     document: Any = None
     inputs: dict = dataclasses.field(default_factory=dict)
     design: Design | None = None
+    band: Any = None
 
     @property
     def batches(self) -> int:
@@ -894,7 +898,7 @@ def campaign_from_mapping(data: Any, source: str, digest: str = "",
     f = Fields(data, source)
     f.reject_unknown({"name", "description", "seed", "runs", "sampling", "batch_size", "families",
                       "couplers", "brake_params", "uncertainties", "manoeuvres", "adhesion_limit",
-                      "step_s", "vehicle_types"})
+                      "step_s", "vehicle_types", "band"})
     runs = f.integer("runs", lo=1, hi=MAX_RUNS)
     extra = f.data.get("vehicle_types") or {}
     if not isinstance(extra, Mapping):
@@ -951,7 +955,26 @@ def campaign_from_mapping(data: Any, source: str, digest: str = "",
         adhesion_limit=(f.number("adhesion_limit", lo=0.0, lo_open=True, hi=1.0)
                         if f.has("adhesion_limit") else None),
         step_s=step, vehicle_types=dict(extra), vehicle_lengths_m=library,
-        document=None if Path(source).is_file() else data, inputs=files, design=design)
+        document=None if Path(source).is_file() else data, inputs=files, design=design,
+        band=_band(f, files))
+
+
+def _band(f: Fields, files: dict):
+    """``band``: true (the shipped model-form band), a band file, or false (none)."""
+    if not f.has("band") or f.data["band"] is False:
+        return None
+    from .band import DEFAULT_BAND, load_band
+
+    value = f.data["band"]
+    if value is True:
+        path = resolve_config_path(DEFAULT_BAND)
+    elif isinstance(value, str) and value.strip():
+        path = resolve_config_path(value, Path(f.source).parent)
+    else:
+        raise f.error("band", f"must be true, false or a band file, got {kind_of(value)}")
+    band = load_band(path)
+    files[str(Path(path).resolve())] = content_digest(path)
+    return band
 
 
 def _require_salib(f: Fields, kind: str) -> None:

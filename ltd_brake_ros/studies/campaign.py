@@ -342,7 +342,7 @@ def models(c: Campaign, sample: dict):
 
 #: Version of the results' columns and their metadata, recorded in every batch file
 #: (``ltd_brake_ros.schema_version``): 2 adds each column's unit and description.
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 #: Keys of the schema-level metadata of a batch file.
 SCHEMA_VERSION_KEY, UNITS_KEY = "ltd_brake_ros.schema_version", "ltd_brake_ros.units"
 
@@ -369,10 +369,16 @@ KPI_FIELDS = (
     ("mean_adhesion", pa.float64()), ("mean_adhesion_vehicle", pa.int32()),
     ("max_adhesion_demand", pa.float64()), ("max_adhesion_vehicle", pa.int32()),
     ("draft_ok", pa.bool_()), ("buff_ok", pa.bool_()), ("travel_ok", pa.bool_()),
-    ("adhesion_ok", pa.bool_()),
+    ("adhesion_ok", pa.bool_()), ("buffers_ok", pa.bool_()),
+    ("non_physical", pa.string()), ("in_model_range", pa.bool_()),
+    ("model_warnings", pa.string()),
     ("steps", pa.int64()), ("newton_iterations", pa.int64()),
     ("newton_iterations_per_step", pa.float64()), ("max_newton_iterations", pa.int32()),
     ("couplers_beyond_lut", pa.int32()),
+    ("band_status", pa.string()),
+    ("stopping_distance_m_min", pa.float64()), ("stopping_distance_m_max", pa.float64()),
+    ("peak_draft_kN_min", pa.float64()), ("peak_draft_kN_max", pa.float64()),
+    ("peak_buff_kN_min", pa.float64()), ("peak_buff_kN_max", pa.float64()),
 )
 
 #: Column -> (unit, description) of every column but the uncertain parameters (theirs come
@@ -444,6 +450,24 @@ COLUMNS = {
     "max_newton_iterations": ("-", "Most Newton iterations of a single step."),
     "couplers_beyond_lut": ("-", "Number of couplers that went beyond the range of their "
                                  "coupler characteristic (forces there are not physical)."),
+    "buffers_ok": ("", "True when no coupling went beyond twice its buffers' declared end "
+                       "force (their limit state)."),
+    "non_physical": ("", "The run's NON-PHYSICAL line (the first coupling beyond its buffers' "
+                         "limit state or travel, when, how many did); empty when physical."),
+    "in_model_range": ("", "True when the train is inside every model's validated range."),
+    "model_warnings": ("", "Where the train leaves its models' ranges, one sentence each, "
+                           "separated by ' | '; empty inside them."),
+    "band_status": ("", "The model-form band's verdict (campaign key band): PASS, WARN, FAIL, "
+                        "model-dependent, NON-PHYSICAL or no member in range; null without a "
+                        "band or for other manoeuvres."),
+    "stopping_distance_m_min": ("m", "The band's shortest stopping distance (null without)."),
+    "stopping_distance_m_max": ("m", "The band's longest stopping distance (null without)."),
+    "peak_draft_kN_min": ("kN", "The band's smallest peak draft force (null without)."),
+    "peak_draft_kN_max": ("kN", "The band's largest peak draft force (null without)."),
+    "peak_buff_kN_min": ("kN", "The band's smallest peak buff force in magnitude, negative "
+                               "(null without)."),
+    "peak_buff_kN_max": ("kN", "The band's largest peak buff force in magnitude, negative "
+                               "(null without)."),
 }
 
 
@@ -560,12 +584,19 @@ def run_one(c: Campaign, run_id: int) -> list[dict]:
 
 def _simulate(c: Campaign, m, consist, speed_kmh: float, params, lut) -> dict:
     """KPIs of one run of manoeuvre ``m``, and its verdicts by the campaign's limits."""
+    band = None
     if m.kind == "emergency":
         # as emergency_stop runs it (the same steps, results and final chunk), with the
-        # simulator's verdicts at hand
+        # simulator's verdicts at hand; with a band, the run is its nominal member
         start = time.perf_counter()
-        sim = emergency_run(consist, speed_kmh, params, lut, step_s=c.step_s, chunk_s=CHUNK_S,
-                            max_time_s=MAX_TIME_S, group=True)
+        if c.band is not None:
+            from .band import run_band
+
+            band, sim = run_band(consist, speed_kmh, params, lut, band=c.band, step_s=c.step_s,
+                                 chunk_s=CHUNK_S, max_time_s=MAX_TIME_S)
+        else:
+            sim = emergency_run(consist, speed_kmh, params, lut, step_s=c.step_s,
+                                chunk_s=CHUNK_S, max_time_s=MAX_TIME_S, group=True)
         r = summarize(sim, time.perf_counter() - start)
         out = {k: getattr(r, k) for k in (
             "train_mass_t", "train_length_m", "braked_weight_percent", "stopping_distance_m",
@@ -609,8 +640,15 @@ def _simulate(c: Campaign, m, consist, speed_kmh: float, params, lut) -> dict:
     out["max_adhesion_demand"] = demand.worst_value
     out["max_adhesion_vehicle"] = demand.worst_number + 1
     flags = verdicts_module.flags(verdicts)
-    for name in ("draft_ok", "buff_ok", "travel_ok", "adhesion_ok"):
+    for name in ("draft_ok", "buff_ok", "travel_ok", "adhesion_ok", "buffers_ok"):
         out[name] = flags[name]
+    out["non_physical"] = verdicts.non_physical_line or ""
+    out["in_model_range"] = not sim.model_warnings
+    out["model_warnings"] = " | ".join(sim.model_warnings)
+    if band is not None:
+        out["band_status"] = band.status
+        for name, k in band.kpis.items():
+            out[f"{name}_min"], out[f"{name}_max"] = k.low, k.high
     return out
 
 

@@ -266,3 +266,36 @@ def test_a_killed_pool_worker_has_its_batches_redone(reference, tmp_path):
         summary = run_campaign(c, tmp_path / "out", pool, progress=kill_a_worker)
     assert killed and summary["runs"] == c.runs
     assert read_results(tmp_path / "out")[1].equals(table)
+
+
+def test_a_campaign_band_judges_every_emergency_stop_under_every_member(reference, tmp_path):
+    from ltd_brake_ros.inputs.band import load_band
+    from ltd_brake_ros.studies.band import run_band
+    from ltd_brake_ros.inputs import consist_from_mapping
+    from ltd_brake_ros.studies.campaign import draw, models, run_one
+
+    c, table = reference
+    # without a band: no band columns, but the limit-state and range columns
+    rows = table.to_pylist()
+    assert all(r["band_status"] is None and r["peak_draft_kN_max"] is None for r in rows)
+    assert all(r["buffers_ok"] and r["non_physical"] == "" for r in rows)
+    assert all(r["in_model_range"] == (r["model_warnings"] == "") for r in rows)
+    path = write_campaign(tmp_path, runs=2, batch=2)
+    path.write_text(path.read_text() + "band: true\n")
+    banded = load_campaign(path)
+    assert banded.band == load_band()
+    for run in range(2):
+        [row] = run_one(banded, run)
+        sample, data = draw(banded, run)
+        params, lut = models(banded, sample)
+        band, _ = run_band(consist_from_mapping(data, "test"), row["speed_kmh"], params, lut,
+                           step_s=banded.step_s)
+        assert row["band_status"] == band.status
+        for name, k in band.kpis.items():
+            assert (row[f"{name}_min"], row[f"{name}_max"]) == (k.low, k.high)
+        # the row's own numbers are the nominal member's: within the band
+        lo, hi = sorted((row["peak_buff_kN_min"], row["peak_buff_kN_max"]))
+        assert lo <= row["peak_buff_kN"] <= hi
+    path.write_text(path.read_text().replace("band: true", "band: 3"))
+    with pytest.raises(InputError, match="band: must be true, false or a band file"):
+        load_campaign(path)

@@ -47,7 +47,7 @@ def test_every_column_of_a_batch_file_has_its_unit_and_description(results):
             if field.name.endswith(suffix):
                 assert unit == expected, field.name
     meta = schema.metadata
-    assert meta[b"ltd_brake_ros.schema_version"] == str(SCHEMA_VERSION).encode() == b"2"
+    assert meta[b"ltd_brake_ros.schema_version"] == str(SCHEMA_VERSION).encode() == b"3"
     units = json.loads(meta[b"ltd_brake_ros.units"])
     assert list(units) == schema.names
     assert all(units[f.name] == f.metadata[b"unit"].decode() for f in schema)
@@ -86,7 +86,7 @@ def test_schema_action_lists_every_column(results, capsys, which):
     path = {"batch": batch_file(out), "folder": out, "campaign": c.source}[which]
     assert main(["campaign", "schema", str(path)]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert "schema version 2" in lines[0] and lines[1].split() == [
+    assert "schema version 3" in lines[0] and lines[1].split() == [
         "column", "type", "unit", "description"]
     listed = [line.split()[0] for line in lines[2:]]
     assert listed == schema_of(c).names
@@ -98,7 +98,7 @@ def test_schema_action_prints_json(results, capsys):
     c, out = results
     assert main(["campaign", "schema", str(batch_file(out)), "--json"]) == 0
     got = json.loads(capsys.readouterr().out)
-    assert got["schema_version"] == 2
+    assert got["schema_version"] == 3
     assert [col["name"] for col in got["columns"]] == schema_of(c).names
     col = next(col for col in got["columns"] if col["name"] == "stopping_distance_m")
     assert col["type"] == "double" and col["unit"] == "m" and col["description"]
