@@ -1,5 +1,5 @@
-"""Verdicts on a run: coupler strength and travel, endurable compressive force, adhesion,
-wheel temperature.
+"""Verdicts on a run: coupler strength, the buffers' limit state and travel, endurable
+compressive force, adhesion by design and against the rail, holding at rest, wheel temperature.
 
 One table, one row per criterion. Each criterion states what it assesses, over which part of
 the run (its scope) and by what source; its status is PASS, its severity when a limit is
@@ -14,32 +14,23 @@ beyond its limit (by how much, when, at what speed):
 ``endurable_lcf``       FAIL        buff force against the endurable longitudinal compressive
                                     force of the two vehicles (EN 15839); not assessed unless
                                     a consist gives one
+``buffer_limit_state``  FAIL        each coupling's buff force against twice its buffers'
+                                    declared end force: beyond it the run is non-physical
 ``coupler_travel``      FAIL        each coupler's deflection against the coupler model's
-                                    travel (a buffer's solid end, a table's last point):
-                                    beyond it the forces are not physical and the run is
-                                    marked so
-``adhesion``            FAIL        each vehicle's mean utilised adhesion over the braked
-                                    part of a stop from 100 km/h or more (full application
-                                    to 5 km/h) against its limit, 0.12 for a vehicle without
-                                    wheel-slide protection
-``adhesion_at_speed``   WARN        each vehicle's instantaneous adhesion demand above
-                                    30 km/h against 0.15
-``adhesion_low_speed``  INFO        the largest instantaneous demand below 30 km/h (never a
-                                    failure: block friction peaks as the wheels slow down;
-                                    noted where it exceeds a wet rail's adhesion)
-``standstill_holding``  FAIL        after the stop, the force each vehicle must hold (coupler
-                                    forces, grade) against what its brake holds at rest
+                                    travel: beyond it the run is non-physical
+``adhesion``            FAIL        each braked vehicle's mean utilised adhesion by design,
+                                    its own stop from its maximum speed (the mean-value
+                                    method), whatever the run, against 0.12 (0.15 with
+                                    wheel-slide protection)
+``adhesion_demand``     WARN        each braked vehicle's demand while moving against the
+                                    declared rail's adhesion: wheel slide expected
+``standstill_holding``  FAIL        the train settled at rest: the force it must hold against
+                                    what its vehicles hold (a parking-brake calculation)
+``runaway``             FAIL        a vehicle moving from a settled standstill without
+                                    traction
 ``wheel_temperature``   WARN        each tread-braked vehicle's peak mean wheel temperature
-                                    (:mod:`~.physics.brakes.thermal`) against 350 C, a
-                                    conservative value (no limit verified)
+                                    against 350 C, indicative (no limit verified)
 ======================  ==========  ======================================================
-
-Adhesion demand is the air brake's retarding force over the vehicle's weight, m g; its mean
-over a stop (EN 14531-1's mean-value calculation) subtracts what decelerates the rotating
-masses, ((rho - 1) M a), and weights by distance: the brake's work at the rails over the
-distance run while the brake is fully applied (:data:`~.physics.kernel.FULL_APPLICATION`) and
-the vehicle runs at 5 km/h or faster. The kinetic brake force is never evaluated at rest: a
-stopped, braked wheel holds, it demands no sliding adhesion.
 
 Limits of coupler j (joining vehicles j - 1 and j, vehicles numbered from 0 at the head): the
 smaller of the two vehicles' ``limits`` in the consist file, else the coupler model's
