@@ -97,11 +97,14 @@ class Case:
 
     @property
     def brakes(self) -> str:
-        """Short description of the brake setting."""
+        """Short description of the brake setting, its model named (the paper's empirical one
+        on every row, long trains beyond its 500 m range included: the integrator is timed on
+        the same model throughout)."""
+        model = "empirical" if self.params().model == "uic_empirical" else self.params().model
         if self.position == "P":
-            text = f"P, t_fill {self.params().t_fill_s:g} s"
+            text = f"{model}, P, t_fill {self.params().t_fill_s:g} s"
         else:
-            text = f"G, t_fill {self.params().t_fill_G_s:g} s"
+            text = f"{model}, G, t_fill {self.params().t_fill_G_s:g} s"
         return text + (", simultaneous" if self.simultaneous else ", from the head")
 
     @property
