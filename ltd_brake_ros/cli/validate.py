@@ -28,8 +28,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "windows, propagation 250-280 m/s at 500-1500 m (UIC 540), build-up time "
                         "at most ETCS's in P and G at 300-1500 m (SUBSET-026), T_e(700 m) - "
                         "T_e(500 m) = 2.2 +/- 1.0 s in P (UIC 544-1), distances within 1 %% of "
-                        "LTDPoliTo, peak draft within 15 %% and buff within 20 %% of the paper; "
-                        "--params defaults to brake_params/uic_brake_pipe.yaml")
+                        "LTDPoliTo, peak draft within 15 %% and buff within 20 %% of the paper "
+                        "(their couplers reported, not targeted: docs/brake-pipe.md); --params "
+                        "defaults to brake_params/uic_brake_pipe.yaml")
     p.add_argument("--band", metavar="FILE", nargs="?", const="",
                    help="then run each scenario's model-form band (every brake x coupler model "
                         "of FILE, default the shipped bands/model_form.yaml; the paper's "

@@ -349,7 +349,10 @@ def paper_stops(params: BrakeParams, scenarios: Sequence[int] | None = None, *,
 
 
 #: Tables 1-2 with this model: every stopping distance within this fraction of LTDPoliTo's,
-#: every peak draft and peak buff magnitude within these fractions of the paper's.
+#: every peak draft and peak buff magnitude within these fractions of the paper's. Not the
+#: paper's own model's +/-10 % draft at +/-2 couplers: run 12's peak there is a run-out wave that
+#: no fitted set meeting UIC 540's propagation and UIC 544-1's length trend gives
+#: (docs/brake-pipe.md, ``benchmarks/pipe_draft_search.py``).
 DISTANCE_TOL = 0.01
 DRAFT_TOL = 0.15
 BUFF_TOL = 0.20

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from ltd_brake_ros.inputs import InputError, brake_params_from_mapping, load_brake_params
+from ltd_brake_ros.inputs import (InputError, brake_params_from_mapping, config_dir,
+                                  load_brake_params)
 
 PIPE = {"model": "uic_brake_pipe"}
 
@@ -24,6 +25,10 @@ PIPE = {"model": "uic_brake_pipe"}
      "application_threshold_bar", "full_application_drop_bar"),
     (PIPE | {"inshot_pressure_bar": 1.9, "max_cylinder_pressure_bar": 1.5},
      "inshot_pressure_bar", "max_cylinder_pressure_bar"),
+    (PIPE | {"block_force_threshold_bar": 1.0, "max_cylinder_pressure_bar": 1.0},
+     "block_force_threshold_bar", "max_cylinder_pressure_bar"),
+    (PIPE | {"application_stroke_bar": 0.5, "inshot_pressure_bar": 0.4},
+     "application_stroke_bar", "inshot_pressure_bar"),
     # 100 L at 5 bar shared with 50 L reaches about 3.3 bar, not 3.8
     (PIPE | {"cylinder_volume_m3": 0.05}, "cylinder_volume_m3", "max_cylinder_pressure_bar"),
 ])
@@ -41,10 +46,16 @@ def test_the_reservoir_check_is_the_isothermal_equalisation_pressure():
         brake_params_from_mapping(PIPE | {"max_cylinder_pressure_bar": 4.2}, "mine.yaml")
 
 
-@pytest.mark.parametrize("name", ["brake_params/paper.yaml", "brake_params/uic.yaml",
-                                  "brake_params/uic_brake_pipe.yaml"])
+@pytest.mark.parametrize("name", sorted(f"brake_params/{p.name}" for p in
+                                         (config_dir() / "brake_params").glob("*.yaml")))
 def test_every_shipped_file_is_a_possible_brake(name):
     load_brake_params(name)
+
+
+def test_the_shipped_files_include_the_first_stage_band_ends():
+    shipped = {p.name for p in (config_dir() / "brake_params").glob("*.yaml")}
+    assert {"paper.yaml", "uic.yaml", "uic_brake_pipe.yaml", "uic_brake_pipe_first_stage_fast.yaml",
+            "uic_brake_pipe_first_stage_slow.yaml"} <= shipped
 
 
 @pytest.mark.parametrize("data, field, words", [

@@ -35,8 +35,10 @@ repeats the venting vehicle's commands ``radio_delay_s`` later (radio distribute
 Distributors (UIC 540 behaviour, measured characteristics rather than valve geometry): a control
 reservoir that follows the pipe through a choke while released (insensitivity to slow drops),
 application when the pipe is more than ``application_threshold`` below it, a one-shot
-quick-service chamber that draws air from the pipe at the start (application stroke), inshot
-(fast first filling up to ``inshot_pressure``), target cylinder pressure proportional to the
+quick-service chamber that draws air from the pipe at the start, the cylinder held at no more
+than ``application_stroke`` until ``application_stroke_s`` after the application (the piston's
+stroke; 0 s: no hold), the first stage (inshot: filling at ``inshot_rate`` up to
+``inshot_pressure``), target cylinder pressure proportional to the
 pipe drop, 3.8 bar at 1.5 bar, with a play hysteresis between application and release
 (graduated application and release), P/G filling rates and release time constants, the
 auxiliary reservoir emptying polytropically into the cylinder, and an accelerator that vents
@@ -45,7 +47,10 @@ can follow: a local drop of a few tenths of a bar that carries an emergency alon
 the rest of the drop flows along the pipe to the emergency orifice of the driver's brake valve
 (diffusive: its time grows as the square of the distance). Empty/loaded
 changes the full block force through the braked weight (Eq. 4), not the cylinder pressure.
-Block force = full block force x cylinder pressure / maximum cylinder pressure.
+Block force = full block force x max(0, p - p0) / (p_max - p0), p the cylinder pressure and p0
+``block_force_threshold`` (the return spring and slack adjuster: UIC 544-1's brake calculation
+has F_dyn = ((p A - F_F) i - 8 F_R) eta, linear in p, zero at about 0.22 bar): no force below p0,
+the full block force of the braked weight at p_max.
 
 Time grid. The model advances on a fixed global grid t_k = k * pipe_step_s; a command issued at t
 reaches the driver's brake valve at t + valve_delay, within a step from that instant on (the
@@ -115,7 +120,10 @@ C_FACE_G = 51  # dt * A / dx: conductance of the face without friction [m s]
 C_FACE_HOSE = 52  # hose loss per length, K / dx [1/m]
 # ---- scalars (continued)
 S_ROUGH = 53  # relative roughness of the pipe wall, epsilon / D [-]
-N_COEF = 54
+S_P_STROKE = 54  # cylinder pressure held during the application stroke, gauge [Pa]
+S_STROKE_S = 55  # duration of the application stroke from the distributor applying [s]
+S_P_FORCE0 = 56  # cylinder pressure below which the blocks give no force, gauge [Pa]
+N_COEF = 57
 
 # ---- columns of BrakeState.extra
 X_P = 0  # pipe pressure, absolute [Pa]
@@ -135,7 +143,8 @@ X_T_ACT = 13  # when the current command reached the vehicle's driver's brake va
 X_MODE = 14  # position of the vehicle's driver's brake valve in the current step
 X_EM_OPEN = 15  # opening of its emergency orifice in the current step [-]
 X_ACC_P = 16  # acceleration chamber, absolute [Pa]
-N_EXTRA = 17
+X_T_APP = 17  # when the distributor last went into application (end of that step) [s]
+N_EXTRA = 18
 
 #: Rows of ``BrakeState.work`` the advance uses: the pipe step's tridiagonal system (sub-,
 #: main and super-diagonal, right-hand side), the face conductances and the pressures before
@@ -157,7 +166,8 @@ class Params:
     15-20 s and 45-60 s, sensitivity and insensitivity), UIC 541-03 (driver's brake valve,
     first step, full service), the brake-pipe models of Cantone et al. (2009), Proc. IMechE F
     223:305 and Wu et al. (2021), Veh. Syst. Dyn. 59:1445 (pipe bore, hose losses, isothermal
-    flow). Values marked "fitted" were chosen so that the model meets the UIC 540 windows and
+    flow), UIC 544-1's worked brake calculation of a four-axle wagon (block force threshold).
+    Values marked "fitted" were chosen so that the model meets the UIC 540 windows and
     propagation speeds printed by ``ltd-brake validate --brake-pipe``.
     """
 
@@ -256,12 +266,32 @@ class Params:
                                             "releases fully (fitted) [bar]",
                                             key="release_threshold_bar", scale=BAR,
                                             lo=0.0, hi=1.0)
-    inshot_pressure_Pa: float = parameter(1.3 * BAR, "cylinder pressure reached at the inshot "
-                                          "rate (fitted to the peak forces of Tables 1-2) [bar]",
+    inshot_pressure_Pa: float = parameter(1.445 * BAR, "first stage: cylinder pressure "
+                                          "reached at the inshot rate (fitted to the peak forces "
+                                          "of Tables 1-2 as 1.3 bar without a force threshold; "
+                                          "0.22 + 1.3 x 3.58 / 3.8 gives the same block force "
+                                          "above the threshold) [bar]",
                                           key="inshot_pressure_bar", scale=BAR, lo=0.0, hi=2.0)
     inshot_rate_Pa_s: float = parameter(8.0 * BAR, "cylinder filling rate during inshot "
                                         "(fitted) [bar/s]", key="inshot_rate_bar_s", scale=BAR,
                                         lo=0.01, lo_open=True, hi=50.0)
+    application_stroke_Pa: float = parameter(0.0, "cylinder pressure held while the piston "
+                                             "travels its application stroke, before the first "
+                                             "stage fills on (0 with application_stroke_s 0: "
+                                             "not modelled) [bar]", key="application_stroke_bar",
+                                             scale=BAR, lo=0.0, hi=1.0)
+    application_stroke_s: float = parameter(0.0, "time from the distributor applying until its "
+                                            "application stroke ends: the cylinder stays at or "
+                                            "below application_stroke_bar until then (0: no "
+                                            "hold) [s]", lo=0.0, hi=5.0)
+    block_force_threshold_Pa: float = parameter(0.22 * BAR, "cylinder pressure below which "
+                                                "the blocks give no force (return spring and "
+                                                "slack adjuster: 0.22 bar from UIC 544-1's worked "
+                                                "brake calculation); above it the force grows "
+                                                "linearly to the full block force at "
+                                                "max_cylinder_pressure_bar [bar]",
+                                                key="block_force_threshold_bar", scale=BAR,
+                                                lo=0.0, hi=1.0)
     fill_rate_P_Pa_s: float = parameter(0.65 * BAR, "cylinder filling rate after inshot in P "
                                         "(fitted to UIC 540 P filling 3-5 s) [bar/s]",
                                         key="fill_rate_P_bar_s", scale=BAR, lo=0.01,
@@ -398,6 +428,15 @@ def check_fields(p: Params) -> None:
         raise CompileError("application_threshold_bar", f"{bar(p.application_threshold_Pa)} is "
                            "not below full_application_drop_bar "
                            f"({bar(p.full_application_drop_Pa)})")
+    if p.block_force_threshold_Pa >= p.max_cylinder_pressure_Pa:
+        raise CompileError("block_force_threshold_bar", f"{bar(p.block_force_threshold_Pa)} is "
+                           "not below max_cylinder_pressure_bar "
+                           f"({bar(p.max_cylinder_pressure_Pa)}): the blocks would never "
+                           "give their full force")
+    if p.application_stroke_Pa > p.inshot_pressure_Pa:
+        raise CompileError("application_stroke_bar", f"{bar(p.application_stroke_Pa)} is above "
+                           f"inshot_pressure_bar ({bar(p.inshot_pressure_Pa)}): the stroke "
+                           "comes before the first stage")
     if p.inshot_pressure_Pa > p.max_cylinder_pressure_Pa:
         raise CompileError("inshot_pressure_bar", f"{bar(p.inshot_pressure_Pa)} is above "
                            f"max_cylinder_pressure_bar ({bar(p.max_cylinder_pressure_Pa)})")
@@ -470,6 +509,8 @@ def compile(consist, params: Params, force_max_N: np.ndarray) -> BrakeArrays:  #
         S_SUPPLY_BAND: p.supply_band_Pa, S_VALVE_DELAY: p.valve_delay_s,
         S_EM_OPEN: p.emergency_opening_s, S_OVER: p.overcharge_Pa,
         S_OVER_HOLD: p.overcharge_hold_s, S_OVER_RATE: p.overcharge_reduction_rate_Pa_s,
+        S_P_STROKE: p.application_stroke_Pa, S_STROKE_S: p.application_stroke_s,
+        S_P_FORCE0: p.block_force_threshold_Pa,
     }
     for col, value in scalars.items():
         coef[:, col] = value
@@ -499,6 +540,7 @@ def initial_state(arrays: BrakeArrays) -> BrakeState:
     extra[:, X_ACC_P] = P_ATM
     extra[:, X_GRID] = -1.0
     extra[:, X_T_ACT] = -1e9  # long before any command
+    extra[:, X_T_APP] = -1e9
     return state
 
 
@@ -746,6 +788,8 @@ def _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold):
     acc_on = coef[0, S_ACC_ON] > 0.0
     v_aux = coef[0, S_V_AUX]
     draw = coef[0, S_N_POLY] * coef[0, S_V_CYL] / v_aux
+    p_stroke, stroke_s = coef[0, S_P_STROKE], coef[0, S_STROKE_S]
+    p_force0 = coef[0, S_P_FORCE0]
     for i in range(n):
         if coef[i, C_DISTRIBUTOR] <= 0.0:
             continue
@@ -779,6 +823,7 @@ def _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold):
         if extra[i, X_APPLIED] == 0.0:
             if drop > coef[0, S_THETA_APP]:
                 extra[i, X_APPLIED] = 1.0
+                extra[i, X_T_APP] = tk + dt
                 if extra[i, X_QS_STATE] == 0.0:
                     extra[i, X_QS_STATE] = 1.0
             else:
@@ -817,13 +862,16 @@ def _grid_step(arrays, state, events, k, a, b, c, rhs, work, pold):
                 else:
                     new = target - rate * tau * math.exp(-(dt - linear_s) / tau)
             new = min(new, target, p_cmax)
+            if tk + dt - extra[i, X_T_APP] < stroke_s:
+                # the piston travels its application stroke: the first stage waits
+                new = min(new, p_stroke)
             if new > pc:
                 extra[i, X_AUX] -= draw * (new - pc)
                 pc = new
         elif target < pc:
             pc = target + (pc - target) * coef[i, C_RELEASE_DECAY]
         extra[i, X_CYL] = pc
-        state.force_N[i] = arrays.force_max_N[i] * pc / p_cmax
+        state.force_N[i] = arrays.force_max_N[i] * max(pc - p_force0, 0.0) / (p_cmax - p_force0)
 
 
 @jit_step_inner
