@@ -37,7 +37,9 @@ def test_the_band_is_judged_by_the_members_inside_their_ranges(members, expected
 def test_the_paper_train_has_a_narrow_band_that_passes():
     sc = get_scenario(6)
     band, sim = run_band(sc.consist(), sc.speed_kmh)
-    assert len(band.members) == load_band().size == 4
+    # every brake model (empirical; the brake pipe at its nominal first stage and at each end
+    # of the range its first seconds are known in) with every coupler model
+    assert len(band.members) == load_band().size == 8
     assert band.status == "PASS" and all(m.in_range for m in band.members)
     # the nominal member is the run's own: the paper's method, number for number
     ref = summarize(emergency_run(sc.consist(), sc.speed_kmh, group=True), 1.0)
@@ -50,9 +52,11 @@ def test_the_paper_train_has_a_narrow_band_that_passes():
         assert lo <= k.nominal <= hi
         values = [getattr(m, k.name) for m in band.members]
         assert {k.low, k.high} == {min(values), max(values)}
-    # the members agree on the distance within a percent on the paper's train
+    # the members inside the paper's own first seconds agree on the distance within a percent;
+    # the peer's slow first stage stops some 4 % longer
     d = band.kpis["stopping_distance_m"]
-    assert d.high - d.low < 0.01 * d.nominal
+    assert d.high - d.low < 0.06 * d.nominal
+    assert "slow first stage" in d.high_member
     assert sim.stopping_distance_m == nominal.stopping_distance_m
 
 
@@ -69,8 +73,8 @@ def test_a_train_beyond_every_range_shows_the_spread_and_gives_no_verdict():
     # the nominal member is the train's default: the brake pipe beyond 500 m
     assert band.members[band.nominal].brake == "brake pipe"
     lines = band.describe()
-    assert lines[0].startswith("band             no member in range (0 of 4")
-    assert sum("OUTSIDE its range" in line for line in lines) == 4
+    assert lines[0].startswith("band             no member in range (0 of 8")
+    assert sum("OUTSIDE its range" in line for line in lines) == 8
 
 
 def test_a_band_file_is_checked_in_one_line(tmp_path):
@@ -89,7 +93,7 @@ def test_simulate_prints_the_band_and_refuses_it_with_a_recording(tmp_path, caps
     assert main(["simulate", "--scenario", "7", "--band", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     band = out["band"]
-    assert band["status"] == "PASS" and len(band["members"]) == 4
+    assert band["status"] == "PASS" and len(band["members"]) == 8
     assert band["kpis"]["stopping_distance_m"]["nominal"] == out["stopping_distance_m"]
     assert main(["simulate", "--scenario", "7", "--band", "--record",
                  str(tmp_path / "r")]) == 2
