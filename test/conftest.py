@@ -104,9 +104,6 @@ def pytest_configure(config):
     # a first run compiles its kernels in place: a background compile would outlive its test
     # (the tests of the background compile ask for it and wait for it)
     os.environ["LTD_BRAKE_FIRST_RUN"] = "wait"
-    # and every command runs in its own process: a resident server would outlive the suite
-    # (the server's tests start their own, in a folder of their own, and stop it)
-    os.environ["LTD_BRAKE_SERVER"] = "off"
     for name in ("ROS_STATIC_PEERS", "ROS_LOCALHOST_ONLY", "ROS_DISCOVERY_SERVER"):
         os.environ.pop(name, None)
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import gc
 import importlib
 import os
 import signal
@@ -18,10 +19,9 @@ import threading
 from .options import CONVENTIONS
 
 #: The verbs in the order ``ltd-brake --help`` lists them, each the module of its name.
-VERBS = ("simulate", "validate", "calibrate", "report", "recover", "campaign", "server")
-#: The verbs a resident server runs (as :data:`ltd_brake_ros.cli.resident.SERVED`, without importing
-#: it first).
-SERVED = ("simulate",)
+VERBS = ("simulate", "validate", "calibrate", "report", "recover", "campaign")
+#: Allocations between two young-generation collections of the program (Python's default 700).
+GC_THRESHOLD = 50_000
 
 
 def build_parser(verb: str | None = None) -> argparse.ArgumentParser:
@@ -49,7 +49,7 @@ def build_parser(verb: str | None = None) -> argparse.ArgumentParser:
     if verb in VERBS:
         modules = [importlib.import_module(f".{verb}", __package__)]
     else:
-        from . import calibrate, campaign, recover, report, server, simulate, validate  # noqa: F401
+        from . import calibrate, campaign, recover, report, simulate, validate  # noqa: F401
 
         modules = [sys.modules[f"{__package__}.{name}"] for name in VERBS]
     for module in modules:
@@ -83,25 +83,21 @@ def main(argv: list[str] | None = None) -> int:
 
     Notes
     -----
-    Started as the program (``argv`` None), a ``simulate`` command is run by this
-    installation's resident server if one answers (:mod:`ltd_brake_ros.cli.resident`), and starts
-    one for the next command otherwise.
+    Started as the program (``argv`` None), the process collects cyclic garbage rarely
+    (:data:`GC_THRESHOLD`) and not at exit: numba's registries are about 10^5 objects that
+    every full collection traverses, while importing and again in the interpreter's teardown
+    (0.1-0.5 s of a warm ``simulate`` command of about one second). Outputs are closed by the
+    verbs, never left to a collection.
     """
-    program = argv is None  # started as ltd-brake: a resident server may run the command
+    program = argv is None
     argv = sys.argv[1:] if argv is None else argv
-    if program and argv and argv[0] in SERVED:
-        from .resident import forward
-
-        status = forward(argv)
-        if status is not None:
-            return status
+    if program:
+        gc.set_threshold(GC_THRESHOLD, *gc.get_threshold()[1:])
     try:
         return _main(argv)
     finally:
-        if program and argv and argv[0] in SERVED:
-            from .resident import spawn
-
-            spawn()  # for the next command (none if one runs, or if it is turned off)
+        if program:
+            gc.freeze()  # the teardown frees by reference count, without traversing them
 
 
 def _main(argv: list[str]) -> int:

@@ -208,7 +208,6 @@ def run(args: argparse.Namespace) -> int:
         out["non_physical"] = verdicts.non_physical
         out["startup_s"] = startup_s
         out["plain_python_s"] = sim.plain_python_s
-        out["served_by"] = _served_by()
         out["adhesion"] = sim.adhesion.name
         out["wheel_slides"] = sim.wheel_slides()
         out["warnings"] = model_warnings(sim)
@@ -243,19 +242,10 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _served_by() -> int | None:
-    """The resident server's process id if it runs this command, else None."""
-    from . import resident
-
-    return resident.SERVED_BY
-
-
 def _start_up_part(sim) -> str:
     """What the start-up of the cost line was."""
     if sim.plain_python_s > 0.0:
         return "(the simulation kernels compile in the background: a first run)"
-    if _served_by() is not None:
-        return f"(run by the ltd-brake server, process {_served_by()}: kernels loaded there)"
     return "(compiling or loading the simulation kernels, once per process)"
 
 
