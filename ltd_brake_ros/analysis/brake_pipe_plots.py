@@ -12,7 +12,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..recording.output import checked_output
+from ..outputs import replaced_file
 
 __all__ = ["pipe_figure", "profiles_figure", "write_brake_pipe_plot"]
 
@@ -135,6 +135,6 @@ def write_brake_pipe_plot(path, time_s, distance_m, pipe_Pa, cylinder_Pa, **opti
     fig = pipe_figure(time_s, distance_m, pipe_Pa, cylinder_Pa, **options)
     FigureCanvasAgg(fig)
     p = Path(path)
-    with checked_output(p, "wb") as fh:
+    with replaced_file(p, "wb") as fh:
         fig.savefig(fh, format="png", dpi=120)
     return p

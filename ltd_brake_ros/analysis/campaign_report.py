@@ -39,6 +39,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from ..inputs import InputError
+from ..outputs import replaced_file
 from ..studies.campaign import COLUMNS
 from ..studies.campaign_exec import read_results
 from .campaign_kpis import KPIS, NO_VALUE
@@ -692,7 +693,8 @@ def _plots(folder: Path, manoeuvre: str, table, ref_table, name: str,
             ax.grid(alpha=0.3)
             path = folder / f"{kind}_{manoeuvre}_{kpi}.png"
             fig.tight_layout()
-            fig.savefig(path, dpi=90)
+            with replaced_file(path, "wb") as fh:
+                fig.savefig(fh, format="png", dpi=90)
             plt.close(fig)
             written.append(str(path))
     return written

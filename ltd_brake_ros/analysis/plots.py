@@ -6,7 +6,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..recording.output import checked_output
+from ..outputs import replaced_file
 from .brake_pipe_plots import profiles_figure
 
 if TYPE_CHECKING:
@@ -54,7 +54,7 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
     def save(fig, name):
         FigureCanvasAgg(fig)
         p = out / name
-        with checked_output(p, "wb") as fh:
+        with replaced_file(p, "wb") as fh:
             fig.savefig(fh, format="png", dpi=120)
         paths.append(p)
 
@@ -212,6 +212,6 @@ def render_markers(specs, path, title: str = "", window_m: float = 120.0) -> Pat
     near.set_xlabel("position along the track [m] (head to the right); enlarged: the "
                     "head end")
     p = Path(path)
-    with checked_output(p, "wb") as fh:
+    with replaced_file(p, "wb") as fh:
         fig.savefig(fh, format="png", dpi=130)
     return p

@@ -19,7 +19,7 @@ from mcap.records import (Channel, ChunkIndex, DataEnd, Footer, Header, Metadata
 
 from .layout import (LIBRARY, MAGIC, ROS_DISTRO, ROSBAG2_VERSION, RUN_METADATA_NAME,
                      decode_run_metadata, encode_run_metadata)
-from .output import checked_output
+from ..outputs import new_file
 from .qos import parse_qos_profiles, qos_profiles_yaml
 from .ros_types import message_definition, split_type, type_description_hash
 
@@ -481,7 +481,7 @@ class BagWriter:
                 raise OSError(f"writing {self.path} failed: {self._error}") from self._error
             text = yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False,
                                   default_flow_style=False)
-            with checked_output(self.folder / "metadata.yaml", encoding="utf-8") as fh:
+            with new_file(self.folder / "metadata.yaml", encoding="utf-8") as fh:
                 fh.write(text)
 
     def _summary(self) -> bytes:
