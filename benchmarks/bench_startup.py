@@ -12,10 +12,16 @@ idle machine), the background compile's duration, the load average while it ran 
 import of the command line alone. The numba caches are the benchmark's own; the user's
 private folder (the compile estimates) is a temporary one too.
 
+With ``--kinds``, it compiles each kind of kernels instead (every brake model, a short train
+and one with local steps), each in a fresh process with an empty numba cache, and prints the
+wall and CPU time of each compile: the CPU time of an idle machine is the first-compile
+estimate of :data:`ltd_brake_ros.user_files.FIRST_COMPILE_S`.
+
 Usage::
 
     python benchmarks/bench_startup.py             # about a minute
     python benchmarks/bench_startup.py --warm 10
+    python benchmarks/bench_startup.py --kinds     # a few minutes
 """
 from __future__ import annotations
 
@@ -92,11 +98,51 @@ def _numba_floor(env: dict) -> dict:
             "loading the function (numba's code generator set up)": best[2]}
 
 
+_KIND = """
+import sys, time
+from ltd_brake_ros.inputs import brake_params_from_mapping, consist_from_mapping
+from ltd_brake_ros.simulator import Simulator
+
+model, n = sys.argv[1], int(sys.argv[2])
+consist = consist_from_mapping({"name": "kind", "vehicles": [
+    {"type": "E402B"}, {"type": "Shimmns", "mass_t": 80.0, "count": n - 1}]}, "kind")
+params = brake_params_from_mapping({"model": model}, "kind")
+start = time.perf_counter()  # building the simulator compiles part of the kernels
+Simulator(consist, 100.0, params).warm_up()
+print(time.perf_counter() - start)
+"""
+
+
+def kinds() -> None:
+    """Compile every kind of kernels from an empty cache; print wall and CPU time."""
+    from ltd_brake_ros.physics.brakes import MODELS
+    from ltd_brake_ros.physics.kernel import LOCAL_MIN_VEHICLES
+
+    print(f"| brake model | vehicles | local steps | compile, wall [s] | compile, CPU [s] |")
+    print("|---|---:|---|---:|---:|")
+    for model in MODELS:
+        for n, local in ((33, "no"), (max(101, LOCAL_MIN_VEHICLES), "yes")):
+            cache = tempfile.mkdtemp(prefix="ltd-brake-numba-")
+            try:
+                wall, text = _run([sys.executable, "-c", _KIND, model, str(n)],
+                                  dict(os.environ, NUMBA_CACHE_DIR=cache))
+            finally:
+                shutil.rmtree(cache, ignore_errors=True)
+            print(f"| {model} | {n} | {local} | {float(text.split()[-1]):.1f} | "
+                  f"{_CPU[0]:.1f} |", flush=True)
+    print(f"\nload average (1 min) at the end: {os.getloadavg()[0]:.2f} on "
+          f"{os.cpu_count()} cores")
+
+
 def main() -> None:
     """Print the table."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--warm", type=int, default=5, help="later runs (default 5)")
+    ap.add_argument("--kinds", action="store_true",
+                    help="compile each kind of kernels from an empty cache instead")
     args = ap.parse_args()
+    if args.kinds:
+        return kinds()
     from ltd_brake_ros.first_run import wait_for_compile
 
     exe = shutil.which("ltd-brake") or sys.exit("ltd-brake is not on PATH (./dev.sh run ...)")

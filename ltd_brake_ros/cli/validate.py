@@ -91,6 +91,20 @@ def targets_lines(rows, targets=None) -> list[str]:
             for what, ok, detail in targets(rows)]
 
 
+def _compile_first(args, params, lut, chosen, judged: bool) -> None:
+    """Compile here, announced, the kernels the runs need (the workers then load them)."""
+    import sys
+
+    from ..first_run import compile_here
+    from ..studies.judgments import long_train
+
+    runs = [dict(consist=s.consist(), speed_kmh=s.speed_kmh, params=params, lut=lut,
+                 step_s=args.step_s) for s in chosen]
+    if judged:
+        runs.append(dict(consist=long_train(), speed_kmh=100.0, params=params, lut=lut))
+    compile_here(runs, lambda line: print(line, file=sys.stderr, flush=True))
+
+
 def run(args: argparse.Namespace) -> int:
     """Print the paper's Tables 1-2 beside our results."""
     from ..inputs import InputError, load_scenarios
@@ -108,6 +122,8 @@ def run(args: argparse.Namespace) -> int:
         from ..studies import brake_pipe_validation as bpv
         args.params = args.params or bpv.PRESET
     params, lut = load_model(args)
+    _compile_first(args, params, lut, [known[k] for k in scenarios or sorted(known)],
+                   judged=scenarios is None)
     if args.brake_pipe and not args.json:
         pipe = bpv.pipe_params(params)
         figures = bpv.pipe_figures(pipe)

@@ -86,7 +86,7 @@ def check_run_inputs(values: dict[str, Any]) -> str | None:
 
 
 def build_simulator(spec: RunSpec, chunk_s: float,
-                    tolerance_m_s: float = DEFAULT_TOLERANCE_M_S) -> Simulator:
+                    tolerance_m_s: float = DEFAULT_TOLERANCE_M_S, say=None) -> Simulator:
     """The simulator of ``spec``, its compiled kernel loaded (one chunk run, then reset).
 
     Loading the kernel here keeps it from making the first chunk late.
@@ -98,12 +98,25 @@ def build_simulator(spec: RunSpec, chunk_s: float,
         Chunk the plant advances [s].
     tolerance_m_s : float, optional
         The integrator's local error per step in speed [m/s]; 0 = fixed steps.
+    say : callable, optional
+        Told, when the kernels compile here (a first run), the compile's estimated duration
+        before and its measured one after (:func:`~ltd_brake_ros.first_run.measured`).
 
     Raises
     ------
     StartupError
         The inputs do not make a train (naming ``initial_speed_kmh`` or ``consist``).
     """
+    if say is None:
+        return _build_simulator(spec, chunk_s, tolerance_m_s)
+    from ..first_run import measured
+
+    with measured(dict(consist=spec.consist, params=spec.params,
+                       tolerance_m_s=tolerance_m_s), say):
+        return _build_simulator(spec, chunk_s, tolerance_m_s)
+
+
+def _build_simulator(spec: RunSpec, chunk_s: float, tolerance_m_s: float) -> Simulator:
     try:
         sim = Simulator(spec.consist, spec.speed_kmh, spec.params, spec.lut, spec.track,
                         tolerance_m_s=tolerance_m_s)
@@ -153,8 +166,10 @@ class PlantRun:
     sim: Simulator
 
     @classmethod
-    def build(cls, values: dict[str, Any]) -> "PlantRun":
+    def build(cls, values: dict[str, Any], say=None) -> "PlantRun":
         """The run the parameter ``values`` describe.
+
+        ``say`` is told about a compile of its kernels (:func:`build_simulator`).
 
         Raises
         ------
@@ -164,7 +179,8 @@ class PlantRun:
         v = values
         spec = load_plant_inputs(v["consist"], v["initial_speed_kmh"], v["brake_params_file"],
                                  v["coupler_lut_file"], v["track_file"], v["start_chainage_m"])
-        return cls(dict(values), spec, build_simulator(spec, v["chunk_s"], v["tolerance_m_s"]))
+        return cls(dict(values), spec, build_simulator(spec, v["chunk_s"], v["tolerance_m_s"],
+                                                       say=say))
 
     def rebuilt(self, changes: dict[str, Any]) -> "PlantRun | None":
         """The run a reset starts with the run-defining values ``changes`` now set.
