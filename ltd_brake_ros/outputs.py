@@ -30,7 +30,8 @@ import shutil
 from pathlib import Path
 from typing import IO, Iterator
 
-__all__ = ["new_file", "replaced_file", "write_new", "write_replacing"]
+__all__ = ["file_part", "new_file", "one_line", "replaced_file", "write_new",
+           "write_replacing"]
 
 #: Errors of :func:`os.link` that mean "this file system has no hard links".
 _NO_LINKS = {errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.ENOSYS, errno.EMLINK,
@@ -231,6 +232,41 @@ def write_replacing(path, data: bytes | str, encoding: str = "utf-8") -> Path:
                        **({} if binary else {"encoding": encoding})) as fh:
         fh.write(data)
     return Path(path)
+
+
+def one_line(text: str) -> str:
+    """``text`` with its control and format characters written as escapes (``\\n``,
+    ``\\x1b``, ``\\u202e``): one line that no reader takes for a line break or a command.
+
+    For text that ends up inside other text (a comment of a written file, a terminal line).
+    """
+    import unicodedata
+
+    return "".join(c if not (unicodedata.category(c)[0] == "C"
+                             or unicodedata.category(c) in ("Zl", "Zp"))
+                   else c.encode("unicode_escape").decode("ascii") for c in text)
+
+
+def file_part(name: str) -> str:
+    """A user-given name as part of a file name: letters, digits, ``.``, ``-`` and ``_`` kept,
+    anything else (a path separator among them) replaced by ``_``, and then a digest of the
+    name added, so that two names never give one file.
+
+    Parameters
+    ----------
+    name : str
+
+    Returns
+    -------
+    str
+    """
+    import hashlib
+    import re
+
+    safe = re.sub(r"[^A-Za-z0-9._-]", "_", name)[:80]
+    if safe == name:
+        return name
+    return f"{safe}-{hashlib.sha256(name.encode()).hexdigest()[:8]}"
 
 
 def _naming(exc: OSError, target: Path) -> OSError:

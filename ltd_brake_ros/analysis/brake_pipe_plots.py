@@ -107,7 +107,7 @@ def profiles_figure(distance_m, profile_time_s, profile_Pa, time_s, cylinder_Pa:
     right.legend(fontsize=8)
     right.grid(alpha=0.3)
     if title:
-        fig.suptitle(title)
+        fig.suptitle(title, parse_math=False)  # a name, drawn as written
     fig.tight_layout()
     return fig
 
