@@ -182,13 +182,15 @@ class PlantRun:
         return cls(dict(values), spec, build_simulator(spec, v["chunk_s"], v["tolerance_m_s"],
                                                        say=say))
 
-    def rebuilt(self, changes: dict[str, Any]) -> "PlantRun | None":
+    def rebuilt(self, changes: dict[str, Any], say=None) -> "PlantRun | None":
         """The run a reset starts with the run-defining values ``changes`` now set.
 
         Parameters
         ----------
         changes : dict
             Parameter values by name (those set since, and the others unchanged).
+        say : callable, optional
+            Told about a compile of the new run's kernels (:func:`build_simulator`).
 
         Returns
         -------
@@ -202,7 +204,7 @@ class PlantRun:
         """
         if all(self.values.get(name) == value for name, value in changes.items()):
             return None
-        return PlantRun.build(self.values | changes)
+        return PlantRun.build(self.values | changes, say=say)
 
     def settings(self, follow_clock: bool = False) -> PlantSettings:
         """The plant settings of the run (see :func:`plant_settings`)."""
@@ -269,7 +271,7 @@ def reset_run(runner, run: PlantRun, values: dict[str, Any],
         run goes on.
     """
     try:
-        new = run.rebuilt(values)
+        new = run.rebuilt(values, say=log.info)  # a new train may compile its kernels
     except StartupError as exc:
         text = (f"not reset: parameter {exc.parameter}: {exc.reason}; the run goes on as it "
                 "was")
