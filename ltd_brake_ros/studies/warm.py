@@ -12,7 +12,7 @@ __all__ = ["CAMPAIGN_DRAWS", "campaign_runs"]
 
 #: Runs of a campaign whose trains are looked at for the kinds of kernels it needs (a kind met
 #: only later is compiled by the worker that meets it).
-CAMPAIGN_DRAWS = 200
+CAMPAIGN_DRAWS = 32
 
 
 def campaign_runs(c, draws: int = CAMPAIGN_DRAWS) -> Iterator[dict]:
