@@ -149,8 +149,8 @@ def main() -> None:
     argv = [exe, "simulate", "--scenario", "6"]
     caches = [tempfile.mkdtemp(prefix="ltd-brake-numba-") for _ in range(2)]
     private = tempfile.mkdtemp(prefix="ltd-brake-cache-")
-    env = dict(os.environ, NUMBA_CACHE_DIR=caches[0], LTD_BRAKE_FIRST_RUN="background",
-               XDG_CACHE_HOME=private)
+    os.environ["XDG_CACHE_HOME"] = private  # where wait_for_compile finds the compile's lock
+    env = dict(os.environ, NUMBA_CACHE_DIR=caches[0], LTD_BRAKE_FIRST_RUN="background")
     try:
         rows = []
         start = time.perf_counter()
