@@ -206,8 +206,9 @@ def _check_streams(verb: str | None) -> int | None:
     A closed descriptor 0, 1 or 2 is given the null device first, so that no file the
     command opens takes its number (and with it the command's messages or another
     output's bytes). Returns the exit status when the command cannot run (2: a stream is
-    closed; 141: its reader is gone), None when it can. A closed or broken standard error
-    leaves nothing to say the reason on; standard output is never written to instead.
+    closed, with one line on standard error; 141: its reader is gone, said by the status
+    alone as for a writer ended by SIGPIPE), None when it can. A closed or broken standard
+    error leaves nothing to say the reason on; standard output is never written to instead.
     """
     closed = set()
     for fd in (0, 1, 2):
@@ -224,8 +225,7 @@ def _check_streams(verb: str | None) -> int | None:
         _say(f"{name}: error: standard output is closed: nothing the command prints could be "
              "read")
         return 2
-    if 1 in gone:
-        _say(f"{name}: error: standard output is a pipe nobody reads")
+    if 1 in gone:  # as a writer ended by SIGPIPE: nothing to say
         return 141
     return None
 

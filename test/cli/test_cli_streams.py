@@ -86,10 +86,7 @@ def test_a_pipe_whose_reader_is_gone_is_a_failure(commands, verb, stream):
     getattr(proc, stream).close()
     rest = getattr(proc, other).read()
     assert proc.wait(timeout=300) != 0
-    if stream == "stdout":
-        _no_traceback(rest)
-    else:
-        assert rest == ""  # standard output holds no error text
+    assert rest == ""  # nothing to say (as a writer ended by SIGPIPE), no error text
 
 
 @pytest.mark.parametrize("verb", ["simulate", "validate", "report", "campaign"])
