@@ -168,6 +168,13 @@ def main() -> None:
             cpu.append(_CPU[0])
             rows.append((f"later #{k}", wall, *_figures(text),
                          "compiling the simulation kernels" in text))
+        # the same command without the program's garbage-collection settings (for comparison)
+        plain_gc = [sys.executable, "-c", "import sys; from ltd_brake_ros.cli.main import "
+                    "_main; sys.exit(_main(['simulate', '--scenario', '6']))"]
+        default_gc = []
+        for _ in range(args.warm):
+            wall, _text = _run(plain_gc, env)
+            default_gc.append((wall, _CPU[0]))
         wait_env = dict(env, NUMBA_CACHE_DIR=caches[1], LTD_BRAKE_FIRST_RUN="wait")
         wall, text = _run(argv, wait_env)
         rows.append(("first, compiling before it runs (LTD_BRAKE_FIRST_RUN=wait)", wall,
@@ -186,6 +193,9 @@ def main() -> None:
           f"{', '.join(f'{w:.2f}' for w in warm)} s); its CPU time (user and system, what "
           f"an idle machine's wall time would be): best {min(cpu):.2f} s (all: "
           f"{', '.join(f'{c:.2f}' for c in cpu)} s)")
+    print(f"the same command with Python's default garbage collection, best of "
+          f"{len(default_gc)}: {min(w for w, _ in default_gc):.2f} s, CPU time "
+          f"{min(c for _, c in default_gc):.2f} s")
     print(f"background compile of the first run: done {compile_s:.1f} s after the command "
           f"started ({waited:.1f} s after it ended)")
     print(f"import of the command line alone: {imp:.2f} s (a fresh interpreter)")
