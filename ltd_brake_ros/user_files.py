@@ -56,7 +56,11 @@ def private_folder() -> Path:
         It cannot be created, or it is not private (see the module's description).
     """
     base = os.environ.get("XDG_CACHE_HOME", "")
-    base = Path(base) if os.path.isabs(base) else Path.home() / ".cache"
+    try:
+        base = Path(base) if os.path.isabs(base) else Path.home() / ".cache"
+    except (RuntimeError, KeyError):  # no home folder to be found
+        raise UnsafeFolder("no private folder: XDG_CACHE_HOME is not set and the home "
+                           "folder is unknown") from None
     folder = base / FOLDER_NAME
     try:
         base.mkdir(parents=True, exist_ok=True, mode=0o700)

@@ -34,6 +34,19 @@ def test_a_relative_cache_home_is_not_used(monkeypatch, tmp_path):
     assert not (tmp_path / "relative").exists()
 
 
+def test_no_home_folder_is_one_line_not_a_crash(monkeypatch):
+    from pathlib import Path
+
+    def no_home():
+        raise RuntimeError("Could not determine home directory.")
+
+    monkeypatch.delenv("XDG_CACHE_HOME", raising=False)
+    monkeypatch.setattr(Path, "home", staticmethod(no_home))
+    with pytest.raises(user_files.UnsafeFolder, match="home folder is unknown"):
+        user_files.private_folder()
+    assert user_files.compile_estimate("uic_empirical", False)[1].startswith("estimated")
+
+
 def _refused(match: str) -> str:
     with pytest.raises(user_files.UnsafeFolder, match=match) as info:
         user_files.private_folder()
