@@ -29,13 +29,13 @@ TIMES_MAX_BYTES = 65536
 
 #: Seconds a compile of each kind of kernels takes from an empty cache with a core to itself
 #: (its CPU time, ``python benchmarks/bench_startup.py --kinds`` on a 2-core machine: 33 and
-#: 101 vehicles), by brake model and whether local time stepping is compiled in (a train of
-#: 64 vehicles or more with error control). Measured on a busy machine, whose shared caches
-#: make CPU time longer than an idle one's: an estimate errs long rather than short.
+#: 101 vehicles, load average 3-6), by brake model and whether local time stepping is
+#: compiled in (a train of 64 vehicles or more with error control). A busy machine's shared
+#: caches make CPU time longer than an idle one's: an estimate errs long rather than short.
 FIRST_COMPILE_S = {
-    ("uic_empirical", False): 23.0, ("uic_empirical", True): 40.0,
-    ("linear_ramp", False): 25.0, ("linear_ramp", True): 36.0,
-    ("uic_brake_pipe", False): 26.0, ("uic_brake_pipe", True): 36.0,
+    ("uic_empirical", False): 18.6, ("uic_empirical", True): 26.6,
+    ("linear_ramp", False): 18.5, ("linear_ramp", True): 28.1,
+    ("uic_brake_pipe", False): 21.9, ("uic_brake_pipe", True): 30.8,
 }
 
 
