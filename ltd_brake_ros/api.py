@@ -435,11 +435,16 @@ class TimeSeries:
         ------
         InputError
             The suffix is neither, or pyarrow is missing for Parquet.
+        FileExistsError
+            ``path`` exists: a time series never replaces a file
+            (:func:`~ltd_brake_ros.outputs.new_file`; a failed write leaves nothing).
         """
+        from .outputs import new_file
+
         p = Path(path)
         cols = self._long()
         if p.suffix.lower() == ".csv":
-            with open(p, "w", newline="", encoding="utf-8") as f:
+            with new_file(p, "w", newline="", encoding="utf-8") as f:
                 w = csv.writer(f)
                 w.writerow(list(cols))
                 for row in zip(*(c.tolist() for c in cols.values())):
@@ -457,7 +462,8 @@ class TimeSeries:
             meta = {b"conventions": _SIGN.encode(), b"attrs": json.dumps(
                 {k: v for k, v in self.attrs.items() if isinstance(v, (str, float, int))}
             ).encode()}
-            pq.write_table(table.replace_schema_metadata(meta), p)
+            with new_file(p, "wb") as f:
+                pq.write_table(table.replace_schema_metadata(meta), f)
             return p
         raise InputError(str(p), "", "time series are written as .parquet or .csv")
 
@@ -624,19 +630,17 @@ class RunResult:
 
 
 def _announce_compile(**simulator_kwargs) -> None:
-    """On the first run after installing, start compiling the simulation kernels (in the
-    background while the run starts as plain Python, :mod:`~ltd_brake_ros.first_run`) and say
-    so on stderr."""
+    """On the first run after installing, compile the simulation kernels (in the background
+    while the run starts as plain Python, :func:`~ltd_brake_ros.first_run.prepare`), saying so
+    with the compile's estimated duration on stderr."""
     import sys
 
-    from .first_run import begin
+    from .first_run import prepare
 
     def say(line: str) -> None:
         print(f"ltd_brake_ros: {line}", file=sys.stderr, flush=True)
 
-    notice = begin(simulator_kwargs, say)
-    if notice:
-        say(notice)
+    prepare(simulator_kwargs, say)
 
 
 def _train(consist) -> Consist:
@@ -994,11 +998,17 @@ def run_campaign(campaign, out: str | os.PathLike, *, jobs: int | None = None,
     >>> res = run_campaign(load_campaign("campaigns/example.yaml"), "runs/example", jobs=2)  # doctest: +SKIP
     >>> res.quantiles(kpi="peak_buff_kN")                                                  # doctest: +SKIP
     """
+    import sys
+
+    from .first_run import compile_here
     from .studies.campaign_exec import make_executor, missing_batches, prepare_folder
     from .studies.campaign_exec import run_campaign as _run
+    from .studies.warm import campaign_runs
 
     c = campaign if hasattr(campaign, "families") else load_campaign(campaign)
     prepare_folder(c, out, create=False)  # another campaign's folder: one line, no worker
+    compile_here(campaign_runs(c), lambda line: print(f"ltd_brake_ros: {line}",
+                                                      file=sys.stderr, flush=True))
     bar = None
     if progress:
         from tqdm.auto import tqdm

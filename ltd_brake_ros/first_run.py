@@ -1,7 +1,10 @@
 """The first run of a train whose simulation kernels are not compiled yet.
 
-numba compiles the step loop on its first call: about 15 s on two cores, once per installation,
-machine and brake model (then it loads it from its disk cache in a fraction of a second). A
+numba compiles the step loop on its first call: 15-45 s, once per installation, machine, brake
+model and whether local time stepping is compiled in (then it loads it from its disk cache in a
+fraction of a second). Every compile is announced with its estimated duration
+(:func:`~ltd_brake_ros.simulator.compile_notice`) and its measured duration is kept for the
+next announcement (:func:`~ltd_brake_ros.user_files.record_compile`). A
 first run of ``ltd-brake simulate`` or of the Python API does not wait for that: a background
 process compiles the kernels for the same train while the run starts at once with the kernels
 as plain Python (:func:`~ltd_brake_ros.physics.equations.plain`: the same arithmetic, so the
@@ -11,13 +14,17 @@ background process finishes the compile all the same, so the next run loads it.
 
 One background compile runs at a time for a numba cache: it holds a lock file
 (:func:`lock_path`) from before it starts until it has written the cache, and a run that
-finds it held waits for that one instead of starting another.
+finds it held waits for that one instead of starting another. The lock, the compile's log and
+its inputs live in the user's private folder (:func:`~ltd_brake_ros.user_files.private_folder`),
+never under fixed names in a shared temporary folder; where that folder is not private the run
+says so in one line and compiles in the foreground.
 
 ``LTD_BRAKE_FIRST_RUN=wait`` compiles in the foreground instead (before the run, as a process
 that runs many trains wants it; the test suite does).
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import pickle
@@ -27,6 +34,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from .user_files import UnsafeFolder, private_folder, record_compile
 
 #: Environment variable choosing how a first run compiles: ``background`` (the default) or
 #: ``wait``.
@@ -53,14 +62,18 @@ def lock_path(numba_cache_dir: str | None = None) -> Path:
     Returns
     -------
     Path
-        In the temporary folder, named after the user, the package's folder and the cache.
+        In the user's private folder, named after the package's folder and the cache.
+
+    Raises
+    ------
+    UnsafeFolder
+        The private folder cannot be used.
     """
     if numba_cache_dir is None:
         numba_cache_dir = os.environ.get("NUMBA_CACHE_DIR", "")
     key = f"{Path(__file__).resolve().parent}\0{numba_cache_dir}"
     digest = hashlib.sha256(key.encode()).hexdigest()[:16]
-    user = os.getuid() if hasattr(os, "getuid") else 0
-    return Path(tempfile.gettempdir()) / f"ltd_brake_ros-compile-{user}-{digest}.lock"
+    return private_folder() / f"compile-{digest}.lock"
 
 
 class Background:
@@ -75,10 +88,14 @@ class Background:
         Where to say that the compile failed (one line).
     inputs : str, optional
         The file of pickled inputs given to ``process`` (removed if it is left behind).
+    lock : Path, optional
+        The compile's lock (default: :func:`lock_path`).
     """
 
-    def __init__(self, process: subprocess.Popen | None, say, inputs: str | None = None):
+    def __init__(self, process: subprocess.Popen | None, say, inputs: str | None = None,
+                 lock: Path | None = None):
         self.process, self._say, self._inputs = process, say, inputs
+        self._lock = lock if lock is not None else lock_path()
         self._next = 0.0
         self.running = True
 
@@ -87,21 +104,27 @@ class Background:
         if not self.running or now < self._next:
             return self.running
         self._next = now + POLL_S
-        self.running = _held(lock_path())
+        self.running = _held(self._lock)
         if not self.running and self.process is not None:
             code = self.process.wait()
             if self._inputs is not None and os.path.exists(self._inputs):
                 os.unlink(self._inputs)  # a process that failed before reading them
             if code != 0:
                 self._say(f"the background compile failed (exit status {code}, its messages "
-                          f"in {lock_path().with_suffix('.log')}): compiling here")
+                          f"in {self._lock.with_suffix('.log')}): compiling here")
         return self.running
+
+
+def _open_private(path: Path) -> int:
+    """A descriptor of the file ``path`` of the private folder, open for reading and writing
+    (created; no symbolic link followed)."""
+    return os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o600)
 
 
 def _held(path: Path) -> bool:
     """Whether a process holds the lock ``path`` (without keeping it)."""
     try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+        fd = _open_private(path)
     except OSError:
         return False
     try:
@@ -129,7 +152,10 @@ def wait_for_compile(numba_cache_dir: str | None = None, timeout_s: float | None
     bool
         False: still running after ``timeout_s``.
     """
-    path = lock_path(numba_cache_dir)
+    try:
+        path = lock_path(numba_cache_dir)
+    except UnsafeFolder:
+        return True  # no background compile can run without the folder
     deadline = None if timeout_s is None else time.monotonic() + timeout_s
     while _held(path):
         if deadline is not None and time.monotonic() > deadline:
@@ -157,15 +183,18 @@ def start(simulator_kwargs: dict, say) -> Background | None:
     -------
     Background or None
         None: nothing started (``LTD_BRAKE_FIRST_RUN=wait``, no file locks on this system, or
-        no temporary folder): compile in the foreground.
+        no private folder, which ``say`` is told): compile in the foreground.
     """
     from .physics.equations import HAVE_NUMBA, run_plain_while
 
     if os.environ.get(MODE_ENV, "background") == "wait" or fcntl is None or not HAVE_NUMBA:
         return None
-    path = lock_path()
     try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+        path = lock_path()
+        fd = _open_private(path)
+    except UnsafeFolder as exc:
+        say(f"{exc}: compiling in the foreground")
+        return None
     except OSError:
         return None
     process = inputs = None
@@ -175,8 +204,8 @@ def start(simulator_kwargs: dict, say) -> Background | None:
         except OSError:  # another run's compile is under way: wait for that one
             pass
         else:  # the child inherits the lock with the descriptor and holds it until it ends
-            with tempfile.NamedTemporaryFile("wb", suffix=".pickle", prefix="ltd_brake_ros-",
-                                             delete=False) as inputs:
+            with tempfile.NamedTemporaryFile("wb", suffix=".pickle", prefix="inputs-",
+                                             dir=path.parent, delete=False) as inputs:
                 try:
                     pickle.dump(simulator_kwargs, inputs)
                 except (pickle.PicklingError, TypeError, AttributeError):
@@ -184,7 +213,9 @@ def start(simulator_kwargs: dict, say) -> Background | None:
                     return None
             inputs = inputs.name
             try:
-                with open(path.with_suffix(".log"), "wb") as log:
+                log_fd = _open_private(path.with_suffix(".log"))
+                os.ftruncate(log_fd, 0)
+                with os.fdopen(log_fd, "wb") as log:
                     process = subprocess.Popen(
                         [sys.executable, "-m", "ltd_brake_ros.first_run", str(fd), inputs],
                         stdin=subprocess.DEVNULL, stdout=log, stderr=log,
@@ -197,10 +228,18 @@ def start(simulator_kwargs: dict, say) -> Background | None:
         return None
     finally:
         os.close(fd)
-    background = Background(process, say, inputs)
+    background = Background(process, say, inputs, path)
     _STARTED.append(background)
     run_plain_while(background)
     return background
+
+
+def _kind_of(simulator_kwargs: dict) -> tuple:
+    """``(consist, params, tolerance_m_s)`` of a simulator's arguments."""
+    from .physics.kernel import DEFAULT_TOLERANCE_M_S
+
+    return (simulator_kwargs["consist"], simulator_kwargs.get("params"),
+            simulator_kwargs.get("tolerance_m_s", DEFAULT_TOLERANCE_M_S))
 
 
 def begin(simulator_kwargs: dict, say) -> str | None:
@@ -218,19 +257,101 @@ def begin(simulator_kwargs: dict, say) -> str | None:
     Returns
     -------
     str or None
-        One line; None when the kernels are cached (the run loads them).
+        One line with the compile's estimated duration; None when the kernels are cached (the
+        run loads them).
     """
-    from .physics.kernel import DEFAULT_TOLERANCE_M_S
-    from .simulator import COMPILE_S, compile_notice
+    from .simulator import compile_notice
 
-    tolerance = simulator_kwargs.get("tolerance_m_s", DEFAULT_TOLERANCE_M_S)
-    notice = compile_notice(simulator_kwargs["consist"], simulator_kwargs.get("params"),
-                            0.0 if tolerance is None else tolerance)
+    notice = compile_notice(*_kind_of(simulator_kwargs))
     if notice is None or start(simulator_kwargs, say) is None:
         return notice
-    return (f"compiling the simulation kernels in the background (first run only; about "
-            f"{COMPILE_S} s on two cores): this run starts at once with them as plain Python, "
-            "slower, and goes on compiled when they are ready")
+    return compile_notice(*_kind_of(simulator_kwargs), background=True)
+
+
+def prepare(simulator_kwargs: dict, say):
+    """Before a user's run: load its kernels, or on a first run compile them (in the
+    background while the run computes as plain Python, else here), announced with the
+    compile's estimated duration and, when compiled here, its measured one.
+
+    Parameters
+    ----------
+    simulator_kwargs : dict
+        Arguments of :class:`~ltd_brake_ros.simulator.Simulator` for the run's train.
+    say : callable
+        Called with each line to show the user.
+
+    Returns
+    -------
+    Simulator
+        One of the run's train, its kernels loaded (or running as plain Python).
+    """
+    from .physics.equations import plain_now
+    from .simulator import Simulator
+
+    notice = begin(simulator_kwargs, say)
+    if notice:
+        say(notice)
+    if notice and plain_now():
+        return Simulator(**simulator_kwargs)
+    with measured(simulator_kwargs, say, announce=False) if notice else \
+            contextlib.nullcontext():
+        sim = Simulator(**simulator_kwargs)  # it loads (or compiles) part of the kernels
+        sim.warm_up()
+    return sim
+
+
+@contextlib.contextmanager
+def measured(simulator_kwargs: dict, say, announce: bool = True):
+    """Around code that compiles the kernels of a run here: announce it with its estimated
+    duration if they are not cached, and afterwards say and keep how long it took.
+
+    Parameters
+    ----------
+    simulator_kwargs : dict
+        Arguments of :class:`~ltd_brake_ros.simulator.Simulator` for the run's train
+        (``consist``, ``params`` and ``tolerance_m_s`` are read).
+    say : callable
+        Called with each line.
+    announce : bool, optional
+        Say the announcement here (False: the caller did).
+    """
+    from .simulator import compile_kind, compile_notice
+
+    if announce:
+        notice = compile_notice(*_kind_of(simulator_kwargs))
+        if notice is None:
+            yield
+            return
+        say(notice)
+    started = time.monotonic()
+    yield
+    took = time.monotonic() - started
+    record_compile(*compile_kind(*_kind_of(simulator_kwargs)), took)
+    say(f"compiled the simulation kernels in {took:.0f} s; later runs load them")
+
+
+def compile_here(runs, say) -> None:
+    """Before a study's processes start: compile here, announced and measured, the kernels of
+    every kind its runs need that are not cached, so that its workers load them.
+
+    Parameters
+    ----------
+    runs : iterable of dict
+        Arguments of :class:`~ltd_brake_ros.simulator.Simulator` for the study's trains
+        (``consist`` and ``speed_kmh`` at least).
+    say : callable
+        Called with each line.
+    """
+    from .simulator import Simulator, compile_kind
+
+    seen = set()
+    for kwargs in runs:
+        kind = compile_kind(*_kind_of(kwargs))
+        if kind in seen:
+            continue
+        seen.add(kind)
+        with measured(kwargs, say):
+            Simulator(**kwargs).warm_up()
 
 
 #: Background compiles this process started (kept so that their processes are reaped).
@@ -248,9 +369,11 @@ def _compile(fd: int, inputs: str) -> int:
     os.set_inheritable(fd, False)
     if hasattr(signal, "alarm"):  # a compile that hangs must not hold the lock for ever
         signal.alarm(COMPILE_LIMIT_S)
-    from .simulator import Simulator
+    from .simulator import Simulator, compile_kind
 
+    started = time.monotonic()
     Simulator(**kwargs).warm_up()
+    record_compile(*compile_kind(*_kind_of(kwargs)), time.monotonic() - started)
     return 0
 
 

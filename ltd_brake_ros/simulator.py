@@ -105,9 +105,16 @@ def kernels_cached(brake_model: str | None = None, local_steps: bool = False) ->
         return None
 
 
-#: Seconds the first run of a train compiles its kernels, on an idle 2-core machine
-#: (``benchmarks/bench_startup.py``).
-COMPILE_S = 15
+def compile_kind(consist: Consist | None = None, params: BrakeParams | None = None,
+                 tolerance_m_s: float | None = kernel.DEFAULT_TOLERANCE_M_S
+                 ) -> tuple[str, bool]:
+    """Which compiled step loop a run of ``consist`` uses: its brake model's name and whether
+    local time stepping is compiled in (the arguments as for :func:`compile_notice`)."""
+    model = brakes_module.DEFAULT_MODEL if params is None else brakes_module.model_of(
+        getattr(params, "pneumatic", params)).NAME
+    local = consist is not None and kernel.local_steps_run(
+        len(consist.vehicles), tolerance_m_s=tolerance_m_s or 0.0)
+    return model, bool(local)
 
 
 def whole_steps(duration_s: float, step_s: float, name: str = "duration_s") -> int:
@@ -145,7 +152,8 @@ def whole_steps(duration_s: float, step_s: float, name: str = "duration_s") -> i
 
 
 def compile_notice(consist: Consist | None = None, params: BrakeParams | None = None,
-                   tolerance_m_s: float = kernel.DEFAULT_TOLERANCE_M_S) -> str | None:
+                   tolerance_m_s: float | None = kernel.DEFAULT_TOLERANCE_M_S,
+                   background: bool = False) -> str | None:
     """What to tell the user before a run of ``consist`` that compiles its kernels.
 
     Parameters
@@ -155,21 +163,32 @@ def compile_notice(consist: Consist | None = None, params: BrakeParams | None = 
     params : BrakeParams, optional
         The run's brake parameters (default: the paper's model).
     tolerance_m_s : float, optional
-        The run's error tolerance [m/s] (0: fixed steps, without local time stepping).
+        The run's error tolerance [m/s] (0 or None: fixed steps, without local time stepping).
+    background : bool, optional
+        The kernels compile in a background process while the run starts as plain Python
+        (:mod:`~ltd_brake_ros.first_run`).
 
     Returns
     -------
     str or None
-        One line; None when the kernels are cached (or numba does not say).
+        One line with the compile's estimated duration
+        (:func:`~ltd_brake_ros.user_files.compile_estimate`: the last compile's, or scaled by
+        the cores and load the first time); None when the kernels are cached (or numba does
+        not say).
     """
-    model = None if params is None else brakes_module.model_of(
-        getattr(params, "pneumatic", params)).NAME
-    local = consist is not None and kernel.local_steps_run(len(consist.vehicles),
-                                                           tolerance_m_s=tolerance_m_s)
+    from .user_files import compile_estimate
+
+    model, local = compile_kind(consist, params, tolerance_m_s)
     if kernels_cached(model, local) is not False:
         return None
-    return (f"compiling the simulation kernels (first run only; about {COMPILE_S} s on two "
-            "cores)")
+    seconds, basis = compile_estimate(model, local, beside_a_run=background)
+    what = (f"first run only; the {model} brake model{' with local time steps' if local else ''}"
+            f", about {seconds:.0f} s {basis}")
+    if background:
+        return (f"compiling the simulation kernels in the background ({what}): this run starts "
+                "at once with them as plain Python, slower, and goes on compiled when they "
+                "are ready")
+    return f"compiling the simulation kernels ({what})"
 
 
 def _compiled(consist: Consist, params: BrakeParams, coupler, track: Track, resistance: bool,

@@ -13,6 +13,7 @@ import ctypes
 import fcntl
 import os
 import random
+import shutil
 import signal
 import subprocess
 import sys
@@ -55,6 +56,7 @@ DOMAINS = range(1, 102)
 #: The session's claim on its domain: an open, locked file, released by the kernel when the
 #: process ends, however it ends.
 _domain_claim = None
+_private_cache = None
 
 
 def _domain_in_use(domain: int) -> bool:
@@ -92,9 +94,11 @@ def _claim_domain() -> int:
 
 
 def pytest_unconfigure(config):
-    """Release the session's domain claim."""
+    """Release the session's domain claim; remove its private folder."""
     if _domain_claim is not None:
         _domain_claim.close()
+    if _private_cache is not None:
+        shutil.rmtree(_private_cache, ignore_errors=True)
 
 
 def pytest_configure(config):
@@ -104,9 +108,10 @@ def pytest_configure(config):
     # a first run compiles its kernels in place: a background compile would outlive its test
     # (the tests of the background compile ask for it and wait for it)
     os.environ["LTD_BRAKE_FIRST_RUN"] = "wait"
-    # and every command runs in its own process: a resident server would outlive the suite
-    # (the server's tests start their own, in a folder of their own, and stop it)
-    os.environ["LTD_BRAKE_SERVER"] = "off"
+    # the user's private folder (compile lock, log, compile times) is the session's own
+    global _private_cache
+    _private_cache = tempfile.mkdtemp(prefix="ltd_brake_ros-test-cache-")
+    os.environ["XDG_CACHE_HOME"] = _private_cache
     for name in ("ROS_STATIC_PEERS", "ROS_LOCALHOST_ONLY", "ROS_DISCOVERY_SERVER"):
         os.environ.pop(name, None)
 

@@ -12,7 +12,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..recording.output import checked_output
+from ..outputs import replaced_file
 
 __all__ = ["pipe_figure", "profiles_figure", "write_brake_pipe_plot"]
 
@@ -107,7 +107,7 @@ def profiles_figure(distance_m, profile_time_s, profile_Pa, time_s, cylinder_Pa:
     right.legend(fontsize=8)
     right.grid(alpha=0.3)
     if title:
-        fig.suptitle(title)
+        fig.suptitle(title, parse_math=False)  # a name, drawn as written
     fig.tight_layout()
     return fig
 
@@ -135,6 +135,6 @@ def write_brake_pipe_plot(path, time_s, distance_m, pipe_Pa, cylinder_Pa, **opti
     fig = pipe_figure(time_s, distance_m, pipe_Pa, cylinder_Pa, **options)
     FigureCanvasAgg(fig)
     p = Path(path)
-    with checked_output(p, "wb") as fh:
+    with replaced_file(p, "wb") as fh:
         fig.savefig(fh, format="png", dpi=120)
     return p

@@ -41,6 +41,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from ..inputs import InputError
+from ..outputs import file_part, replaced_file
 from ..studies.campaign import COLUMNS
 from ..studies.campaign_exec import read_results
 from .campaign_intervals import TOO_FEW, compare_quantiles, enough_runs, quantile_interval
@@ -631,6 +632,8 @@ def _plots(folder: Path, manoeuvre: str, table, ref_table, name: str,
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from .plots import legend_as_written
+
     folder.mkdir(parents=True, exist_ok=True)
     written = []
     for kpi, (label, _) in KPIS.items():
@@ -642,20 +645,23 @@ def _plots(folder: Path, manoeuvre: str, table, ref_table, name: str,
             continue  # no run has this KPI (e.g. no stop from 100 km/h): nothing to draw
         for kind in ("cdf", "hist"):
             fig, ax = plt.subplots(figsize=(6, 4))
+            drawn = []
             for x, lab in data:
                 if kind == "cdf":
                     s = np.sort(x)
-                    ax.step(s, np.arange(1, len(s) + 1) / len(s), where="post", label=lab)
+                    drawn += ax.step(s, np.arange(1, len(s) + 1) / len(s), where="post")
                     ax.set_ylabel("cumulative probability")
                 else:
-                    ax.hist(x, bins=40, alpha=0.6, label=lab)
+                    drawn.append(ax.hist(x, bins=40, alpha=0.6)[2])
                     ax.set_ylabel("runs")
-            ax.set_xlabel(f"{kpi} [{_unit(kpi)}] ({label}), {manoeuvre}")
-            ax.legend()
+            # names as written: never mathtext, never a file path
+            ax.set_xlabel(f"{kpi} [{_unit(kpi)}] ({label}), {manoeuvre}", parse_math=False)
+            legend_as_written(ax, drawn, [lab for _, lab in data])
             ax.grid(alpha=0.3)
-            path = folder / f"{kind}_{manoeuvre}_{kpi}.png"
+            path = folder / f"{kind}_{file_part(manoeuvre)}_{kpi}.png"
             fig.tight_layout()
-            fig.savefig(path, dpi=90)
+            with replaced_file(path, "wb") as fh:
+                fig.savefig(fh, format="png", dpi=90)
             plt.close(fig)
             written.append(str(path))
     return written

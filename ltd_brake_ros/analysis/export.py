@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..recording.output import checked_output
+from ..outputs import replaced_file
 from .samples import ARRAYS, BRAKE_COMMAND, plant_samples
 
 if TYPE_CHECKING:
@@ -66,7 +66,7 @@ def write_csv(report: RunReport, outdir) -> list[Path]:
 
     with contextlib.ExitStack() as files:
         def create(name, header):
-            handles[name] = files.enter_context(checked_output(out / FILES[name]))
+            handles[name] = files.enter_context(replaced_file(out / FILES[name]))
             handles[name].write(header + "\n")
 
         create(BRAKE_COMMAND, "time_s,emergency")

@@ -6,8 +6,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..outputs import replaced_file
 from ..physics.brakes.thermal import VALIDATION
-from ..recording.output import checked_output
 from .brake_pipe_plots import profiles_figure
 
 if TYPE_CHECKING:
@@ -55,7 +55,7 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
     def save(fig, name):
         FigureCanvasAgg(fig)
         p = out / name
-        with checked_output(p, "wb") as fh:
+        with replaced_file(p, "wb") as fh:
             fig.savefig(fh, format="png", dpi=120)
         paths.append(p)
 
@@ -75,7 +75,7 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
     ax.set_ylabel("speed [m/s]")
     sec = ax.secondary_yaxis("right", functions=(lambda v: v * 3.6, lambda v: v / 3.6))
     sec.set_ylabel("speed [km/h]")
-    ax.set_title(f"Speed {title}".strip())
+    ax.set_title(f"Speed {title}".strip(), parse_math=False)
     ax.grid(alpha=0.3)
     ax.legend()
     save(fig, "speed.png")
@@ -89,7 +89,7 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
     mark_command(ax)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("brake force [kN]")
-    ax.set_title(f"Brake force, head wagon and tail {title}".strip())
+    ax.set_title(f"Brake force, head wagon and tail {title}".strip(), parse_math=False)
     ax.grid(alpha=0.3)
     ax.legend()
     save(fig, "brake_force.png")
@@ -104,7 +104,7 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
     _limit_lines(ax, report, j)
     ax.set_xlabel("coupler (1 = behind the head)")
     ax.set_ylabel("coupler force [kN]  (draft +, buff -)")
-    ax.set_title(f"Peak coupler forces along the train {title}".strip())
+    ax.set_title(f"Peak coupler forces along the train {title}".strip(), parse_math=False)
     ax.grid(alpha=0.3, axis="y")
     ax.legend()
     save(fig, "coupler_peaks.png")
@@ -123,7 +123,7 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
         fig.colorbar(im, ax=ax, label="coupler force [kN]  (draft +, buff -)")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("coupler (1 = behind the head)")
-    ax.set_title(f"Coupler force {title}".strip())
+    ax.set_title(f"Coupler force {title}".strip(), parse_math=False)
     save(fig, "coupler_force_map.png")
     if report.has_brake_pipe:
         cylinders = {} if not report.cylinder_time_s.size else {
@@ -142,11 +142,22 @@ def write_plots(report: RunReport, outdir) -> list[Path]:
         mark_command(ax)
         ax.set_xlabel("time [s]")
         ax.set_ylabel("temperature [C]")
-        ax.set_title(f"Brake heat {title}".strip() + f" (model {VALIDATION})")
+        ax.set_title(f"Brake heat {title}".strip() + f" (model {VALIDATION})",
+                     parse_math=False)
         ax.legend(loc="best", fontsize=8)
         save(fig, "brake_temperature.png")
     report.plots = paths
     return paths
+
+
+def legend_as_written(ax, handles, labels, **kw):
+    """``ax.legend`` of ``handles`` with ``labels`` drawn as written: no label read as
+    mathtext (``$...$``) and none left out for starting with ``_`` (as matplotlib does with
+    the labels it collects itself)."""
+    leg = ax.legend(handles, labels, **kw)
+    for text in leg.get_texts():
+        text.set_parse_math(False)
+    return leg
 
 
 def _limit_lines(ax, report: RunReport, couplers: np.ndarray) -> None:
@@ -204,15 +215,16 @@ def render_markers(specs, path, title: str = "", window_m: float = 120.0) -> Pat
                                    lw=0.4, zorder=3 if m.ns.endswith("couplers") else 2))
         for m in specs:
             if labels and m.kind == "text" and left <= m.x <= head:
-                ax.text(m.x, 2.4, m.text, ha="center", va="center", fontsize=7)
+                ax.text(m.x, 2.4, m.text, ha="center", va="center", fontsize=7,
+                        parse_math=False)
         ax.plot([left - 2, head + 2], [0, 0], color="0.3", lw=1.5)  # the rail
         ax.set_xlim(left - 2, head + 2)
         ax.set_ylim(-0.5, 5.0)
         ax.set_yticks([])
-    whole.set_title(title, fontsize=9)
+    whole.set_title(title, fontsize=9, parse_math=False)
     near.set_xlabel("position along the track [m] (head to the right); enlarged: the "
                     "head end")
     p = Path(path)
-    with checked_output(p, "wb") as fh:
+    with replaced_file(p, "wb") as fh:
         fig.savefig(fh, format="png", dpi=130)
     return p

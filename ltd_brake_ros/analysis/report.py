@@ -517,6 +517,8 @@ def analyse(path, namespace: str | None = None) -> RunReport:
     info = bag_info(path)
     ns = _find_namespace(path, info.topics, namespace)
     metadata, stamped, notes = _time_base(path, info, ns)
+    if info.unfinished:
+        notes.insert(0, info.unfinished)
     watch = None  # verdict tracking, once the train's size is known
     speed = _Series("t", "head", "tail", "vmax")
     pos = _Series("t", "head")

@@ -85,7 +85,10 @@ def plant_samples(path, namespace: str, stamped: bool = False
         times: for a recording made by another recorder (``ros2 bag record``), whose log times
         are receive times. Positions, speeds, brake and coupler forces then come from the
         states, each at its stamp; every other message at the stamp of the last state
-        received before it (the state its command or value follows).
+        received before it (the state its command or value follows). Each state topic's
+        stamps must increase strictly in the order the messages were logged: anything else
+        (a reset of the plant, a second plant on the namespace, messages delivered out of
+        order) is refused, since no single run's report can be made of it.
 
     Yields
     ------
@@ -110,6 +113,7 @@ def plant_samples(path, namespace: str, stamped: bool = False
     valve = f"{namespace}/{DRIVER_BRAKE_VALVE}"
     train = _Train(path)
     last_stamp_ns = 0
+    stamps: dict[str, tuple[int, int]] = {}  # state topic -> (last stamp, its log time) [ns]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", TruncatedBagWarning)
         for topic, msg_type, log_ns, data in read_bag(path):
@@ -138,6 +142,7 @@ def plant_samples(path, namespace: str, stamped: bool = False
                 raise BagError(path, topic, f"message at t = {t:.3f} s does not decode: "
                                             f"{exc}") from None
             if topic in states:
+                _check_stamp(path, topic, stamps, stamp_ns, log_ns)
                 if topic.endswith("vehicles/state"):
                     last_stamp_ns = stamp_ns
                 t = stamp_ns / 1e9
@@ -166,3 +171,17 @@ def plant_samples(path, namespace: str, stamped: bool = False
                                f"{int(np.flatnonzero(bad)[0])})")
             train.check(topic, element, t, value.size)
             yield name, t, log_ns, value
+
+
+def _check_stamp(path, topic: str, stamps: dict, stamp_ns: int, log_ns: int) -> None:
+    """Refuse a state whose header stamp does not follow the topic's last one strictly."""
+    before = stamps.get(topic)
+    if before is not None and stamp_ns <= before[0]:
+        raise BagError(path, topic, f"header stamps are not strictly increasing: "
+                       f"t = {stamp_ns * 1e-9:.3f} s (logged at {log_ns * 1e-9:.3f} s) follows "
+                       f"t = {before[0] * 1e-9:.3f} s (logged at {before[1] * 1e-9:.3f} s); "
+                       "the recording holds more than one run (a reset, or two plants on one "
+                       "namespace) or states out of order, and no one report of it can be "
+                       "right: record the plant's own bag (record:=true), or cut the "
+                       "recording where a run starts")
+    stamps[topic] = (stamp_ns, log_ns)

@@ -190,14 +190,14 @@ def command_line(args: argparse.Namespace, fit) -> str:
     return " ".join(parts)
 
 
-def _write(path: str, text: str) -> None:
-    """Write a parameter file; a full disk leaves no truncated file behind."""
+def _write(path: str, text: str, force: bool = False) -> None:
+    """Write a parameter file: a full disk leaves no truncated file behind, and an existing
+    file is replaced only with ``--force`` (one that appeared during the fit is refused)."""
     from ..inputs import InputError
-    from ..recording.output import checked_output
+    from ..outputs import write_new, write_replacing
 
     try:
-        with checked_output(Path(path).expanduser(), encoding="utf-8") as fh:
-            fh.write(text)
+        (write_replacing if force else write_new)(Path(path).expanduser(), text)
     except OSError as exc:
         raise InputError(path, "", f"cannot write: {exc.strerror or exc}") from None
 
@@ -225,7 +225,7 @@ def _finish(args: argparse.Namespace, cal, file_text) -> int:
             text = ("# NOT CONVERGED: the optimiser stopped before the fit converged "
                     f"({cal.message}); these values are not a calibration.\n"
                     + text)
-        _write(args.out, text)
+        _write(args.out, text, force=args.force)
         print()
         print(f"wrote {args.out}")
     return 0
@@ -249,6 +249,15 @@ def _progress(args, total: int):
                 disable=args.quiet or not sys.stderr.isatty(),
                 bar_format="{desc}: {percentage:3.0f}% of budget |{bar}| {n_fmt}/{total_fmt} "
                            "stops [{elapsed}{postfix}]")
+
+
+def _compile_first(args, params, lut, cases) -> None:
+    """Compile here, announced, the kernels of the fit's trains (its workers then load them)."""
+    from ..first_run import compile_here
+
+    compile_here((dict(consist=consist, speed_kmh=speed, params=params, lut=lut,
+                       step_s=args.step_s) for consist, speed in cases),
+                 lambda line: print(line, file=sys.stderr, flush=True))
 
 
 def run_forces(args: argparse.Namespace) -> int:
@@ -293,6 +302,7 @@ def run_forces(args: argparse.Namespace) -> int:
             raise InputError("command line", "--draft-limit-kn",
                              f"must be a positive force, got {args.draft_limit_kn:g}")
         limits = snatch_trains()
+    _compile_first(args, brake, lut, [(s.consist(), s.speed_kmh) for s in scenarios] + limits)
     budget = (args.max_nfev * (len(fit) + 1) + 2 * len(fit) + 2) * (len(scenarios) + len(limits))
     bar = _progress(args, budget)
     try:
@@ -359,6 +369,7 @@ def run(args: argparse.Namespace) -> int:
     side = companion_rows(targets)
     side_cases = [(s.consist(), s.speed_kmh) for s in side]
     cases = [(t.consist, t.speed_kmh) for t in targets] + side_cases
+    _compile_first(args, start, lut, cases)
     budget = (args.max_nfev * (len(fit) + 1) + 2 * len(fit) + 2) * len(targets) + 2 * len(side)
     bar = _progress(args, budget)
     try:

@@ -124,15 +124,19 @@ def run(args: argparse.Namespace) -> int:
     _require_extra(dask=bool(args.dask))
     from tqdm import tqdm
 
+    from ..first_run import compile_here
     from ..inputs.campaign import load_campaign
     from ..studies.campaign_exec import (make_executor, missing_batches, prepare_folder,
                                          run_campaign)
+    from ..studies.warm import campaign_runs
 
     positive_int(args.jobs, "--jobs")
     c = load_campaign(args.file)
     # a folder of another campaign or model is refused before any worker starts
     prepare_folder(c, args.out, create=False)
     todo = missing_batches(c, args.out)
+    if todo:  # the workers load the kernels compiled here, announced
+        compile_here(campaign_runs(c), lambda line: print(line, file=sys.stderr, flush=True))
     per_train = len(c.manoeuvres)  # a row (a run) per train and manoeuvre
     done_runs = per_train * (c.runs - sum(min(c.batch_size, c.runs - b * c.batch_size)
                                           for b in todo))

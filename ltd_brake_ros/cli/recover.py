@@ -38,6 +38,11 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("command line", "DST", str(exc)) from None
     except OSError as exc:
         raise InputError("command line", "DST", f"cannot write {dst}: {exc}") from None
+    if not res["complete"]:
+        import sys
+
+        print(f"ltd-brake recover: warning: {args.src} was not finished by its recorder "
+              f"({res['stopped_at']}); every complete chunk is kept", file=sys.stderr)
     state = "was complete" if res["complete"] else f"ended early ({res['stopped_at']})"
     print(f"source {state}")
     print(f"recovered {res['messages']} messages from {res['chunks']} complete chunks "

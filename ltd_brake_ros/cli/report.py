@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from .options import CONVENTIONS
@@ -57,6 +58,10 @@ def run(args: argparse.Namespace) -> int:
         rep = analyse(run_path, args.namespace)
     except BagError as exc:
         raise InputError("command line", "RUN", str(exc)) from None
+    if not rep.complete:  # read as it is: said on stderr, whatever the output's form
+        why = next((n for n in rep.notes if "unfinished" in n),
+                   f"{run_path} is unfinished: read to its last complete chunk")
+        print(f"ltd-brake report: warning: {why}", file=sys.stderr)
     out = Path(args.out) if args.out else _default_outdir(run_path)
     if out.exists() and not out.is_dir():
         raise InputError("command line", "--out", f"{out} is a file; give a folder for the "

@@ -25,8 +25,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "adhesion and temperature verdicts and the cost.",
         epilog=CONVENTIONS + "\nfirst run:\n  the first run after installing starts at "
                "once with the simulation kernels as plain Python\n  (the same numbers, "
-               "slower) while they compile in the background (about 15 s) for\n  later runs; "
-               "LTD_BRAKE_FIRST_RUN=wait compiles them before the run instead\n"
+               "slower) while they compile in the background (15-45 s, said with\n  an "
+               "estimate) for later runs; LTD_BRAKE_FIRST_RUN=wait compiles them before the\n"
+               "  run instead\n"
                "\nexamples:\n  ltd-brake simulate --scenario 6\n"
                "  ltd-brake simulate --consist my_train.yaml --speed-kmh 80 --json\n"
                "  ltd-brake simulate --scenario 6 --params brake_params/uic_brake_pipe.yaml "
@@ -121,29 +122,17 @@ def _start_up(args, spec, params, lut, adhesion) -> float:
     import sys
     import time
 
-    from ..first_run import begin
-    from ..physics.equations import plain_now
-    from ..simulator import Simulator
+    from ..first_run import prepare
 
     def say(line: str) -> None:
         print(line, file=sys.stderr, flush=True)
 
     start = time.perf_counter()
     # the same train as the run's: the run then takes this compiled model and bound step loop
-    kwargs = dict(consist=spec.consist, speed_kmh=spec.speed_kmh, params=params, lut=lut,
-                  track=spec.track, adhesion=adhesion, step_s=args.step_s,
-                  tolerance_m_s=tolerance(args))
-    notice = begin(kwargs, say)
-    if notice:
-        say(notice)
-    sim = Simulator(**kwargs)
-    if notice and plain_now():
-        return time.perf_counter() - start
-    sim.warm_up()
-    took = time.perf_counter() - start
-    if notice:
-        say(f"compiled the simulation kernels in {took:.0f} s; later runs load them")
-    return took
+    prepare(dict(consist=spec.consist, speed_kmh=spec.speed_kmh, params=params, lut=lut,
+                 track=spec.track, adhesion=adhesion, step_s=args.step_s,
+                 tolerance_m_s=tolerance(args)), say)
+    return time.perf_counter() - start
 
 
 def _timeseries(args: argparse.Namespace):
@@ -265,7 +254,6 @@ def run(args: argparse.Namespace) -> int:
             out["band"] = band.as_dict()
         out["startup_s"] = startup_s
         out["plain_python_s"] = sim.plain_python_s
-        out["served_by"] = _served_by()
         out.update(sim.adhesion.as_dict())
         out["wheel_slides"] = sim.wheel_slides()
         out["warnings"] = model_warnings(sim)
@@ -304,19 +292,10 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _served_by() -> int | None:
-    """The resident server's process id if it runs this command, else None."""
-    from . import resident
-
-    return resident.SERVED_BY
-
-
 def _start_up_part(sim) -> str:
     """What the start-up of the cost line was."""
     if sim.plain_python_s > 0.0:
         return "(the simulation kernels compile in the background: a first run)"
-    if _served_by() is not None:
-        return f"(run by the ltd-brake server, process {_served_by()}: kernels loaded there)"
     return "(compiling or loading the simulation kernels, once per process)"
 
 

@@ -120,6 +120,24 @@ def band_coverage_lines(band_file, scenarios, step_s: float, workers: int) -> li
     return lines
 
 
+def _compile_first(args, params, lut, chosen, judged: bool) -> None:
+    """Compile here, announced, the kernels the runs need (the workers then load them)."""
+    import sys
+
+    from ..first_run import compile_here
+    from ..studies.judgments import long_train
+
+    runs = [dict(consist=s.consist(), speed_kmh=s.speed_kmh, params=params, lut=lut,
+                 step_s=args.step_s) for s in chosen]
+    if judged:  # the long train is judged with both brake models
+        from ..inputs import load_brake_params
+        from ..inputs.brake_params import DEFAULT_FILES
+
+        runs += [dict(consist=long_train(), speed_kmh=100.0, params=load_brake_params(f),
+                      lut=lut) for f in DEFAULT_FILES]
+    compile_here(runs, lambda line: print(line, file=sys.stderr, flush=True))
+
+
 def run(args: argparse.Namespace) -> int:
     """Print the paper's Tables 1-2 beside our results."""
     from ..inputs import InputError, load_scenarios
@@ -137,6 +155,8 @@ def run(args: argparse.Namespace) -> int:
         from ..studies import brake_pipe_validation as bpv
         args.params = args.params or bpv.PRESET
     params, lut = load_model(args)
+    _compile_first(args, params, lut, [known[k] for k in scenarios or sorted(known)],
+                   judged=scenarios is None)
     if args.brake_pipe and not args.json:
         pipe = bpv.pipe_params(params)
         figures = bpv.pipe_figures(pipe)

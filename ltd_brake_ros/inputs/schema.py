@@ -14,6 +14,7 @@ import stat
 import sys
 import threading
 import time
+import unicodedata
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -684,8 +685,88 @@ if _CParser is not None:
 # --------------------------------------------------------------------------- field readers
 
 
+#: Longest text of an input: a name, a description, a source [characters].
+TEXT_MAX_CHARS = 200
+#: Longest file name an input may give under one of :data:`PATH_KEYS` [characters].
+PATH_MAX_CHARS = 4096
+#: Keys whose values are file names rather than names.
+PATH_KEYS = frozenset({"file"})
+
+
+def text_problem(text: str, max_chars: int = TEXT_MAX_CHARS) -> str | None:
+    """What makes ``text`` unfit as a name or description of an input, or None.
+
+    Text is printable Unicode (letters, marks, numbers, punctuation, symbols and spaces; the
+    characters markup uses are ordinary text) without control, format or private-use
+    characters and line breaks, and at most ``max_chars`` characters long.
+
+    Parameters
+    ----------
+    text : str
+    max_chars : int, optional
+
+    Returns
+    -------
+    str or None
+        The reason, in words a user can act on.
+    """
+    if len(text) > max_chars:
+        return f"is {len(text)} characters long; at most {max_chars}"
+    for i, c in enumerate(text):
+        category = unicodedata.category(c)
+        if category[0] == "C" or category in ("Zl", "Zp"):
+            what = "a control character" if category == "Cc" else "an unprintable character"
+            return (f"contains {what} (U+{ord(c):04X}, character {i + 1}); names and "
+                    "descriptions are printable text on one line")
+    return None
+
+
+def _shown(text: str) -> str:
+    """``text`` quoted for a one-line message: escaped and cut to 40 characters."""
+    return repr(text[:40]) + ("..." if len(text) > 40 else "")
+
+
+def check_texts(data: Any, source: str, path: str = "") -> None:
+    """Refuse the first text of a document (a key or a value, at any depth) that
+    :func:`text_problem` refuses, naming its field.
+
+    Parameters
+    ----------
+    data : object
+        A parsed document or a mapping given in its place.
+    source : str
+        Where it came from.
+    path : str, optional
+        Its path in the file.
+
+    Raises
+    ------
+    InputError
+    """
+    stack = [(data, path, False)]
+    while stack:
+        value, where, is_path = stack.pop()
+        if isinstance(value, str):
+            problem = text_problem(value, PATH_MAX_CHARS if is_path else TEXT_MAX_CHARS)
+            if problem:
+                raise InputError(source, where, problem)
+        elif isinstance(value, Mapping):
+            for key, item in value.items():
+                if isinstance(key, str):
+                    problem = text_problem(key)
+                    if problem:
+                        raise InputError(source, where, f"the key {_shown(key)} {problem}")
+                sub = f"{where}.{key}" if where else str(key)
+                stack.append((item, sub, key in PATH_KEYS))
+        elif isinstance(value, (list, tuple)):
+            stack.extend((item, f"{where}[{i}]", is_path) for i, item in enumerate(value))
+
+
 class Fields:
     """Typed access to a mapping, raising :class:`InputError` with the field path.
+
+    A document's top mapping (``path`` empty) has every text in it checked first
+    (:func:`check_texts`): names, descriptions and keys are bounded printable text.
 
     Parameters
     ----------
@@ -702,6 +783,8 @@ class Fields:
             raise InputError(source, "", "is empty")
         if not isinstance(data, Mapping):
             raise InputError(source, path, f"must be a mapping, got {kind_of(data)}")
+        if not path:
+            check_texts(data, source)
         self.data, self.source, self.path = data, source, path
 
     def sub(self, name: str) -> str:

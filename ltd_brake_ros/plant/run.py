@@ -88,7 +88,7 @@ def check_run_inputs(values: dict[str, Any]) -> str | None:
 
 
 def build_simulator(spec: RunSpec, chunk_s: float,
-                    tolerance_m_s: float = DEFAULT_TOLERANCE_M_S) -> Simulator:
+                    tolerance_m_s: float = DEFAULT_TOLERANCE_M_S, say=None) -> Simulator:
     """The simulator of ``spec``, its compiled kernel loaded (one chunk run, then reset).
 
     Loading the kernel here keeps it from making the first chunk late.
@@ -100,12 +100,25 @@ def build_simulator(spec: RunSpec, chunk_s: float,
         Chunk the plant advances [s].
     tolerance_m_s : float, optional
         The integrator's local error per step in speed [m/s]; 0 = fixed steps.
+    say : callable, optional
+        Told, when the kernels compile here (a first run), the compile's estimated duration
+        before and its measured one after (:func:`~ltd_brake_ros.first_run.measured`).
 
     Raises
     ------
     StartupError
         The inputs do not make a train (naming ``initial_speed_kmh`` or ``consist``).
     """
+    if say is None:
+        return _build_simulator(spec, chunk_s, tolerance_m_s)
+    from ..first_run import measured
+
+    with measured(dict(consist=spec.consist, params=spec.params,
+                       tolerance_m_s=tolerance_m_s), say):
+        return _build_simulator(spec, chunk_s, tolerance_m_s)
+
+
+def _build_simulator(spec: RunSpec, chunk_s: float, tolerance_m_s: float) -> Simulator:
     try:
         sim = Simulator(spec.consist, spec.speed_kmh, spec.params, spec.lut, spec.track,
                         tolerance_m_s=tolerance_m_s)
@@ -159,8 +172,10 @@ class PlantRun:
     sim: Simulator
 
     @classmethod
-    def build(cls, values: dict[str, Any]) -> "PlantRun":
+    def build(cls, values: dict[str, Any], say=None) -> "PlantRun":
         """The run the parameter ``values`` describe.
+
+        ``say`` is told about a compile of its kernels (:func:`build_simulator`).
 
         Raises
         ------
@@ -170,15 +185,18 @@ class PlantRun:
         v = values
         spec = load_plant_inputs(v["consist"], v["initial_speed_kmh"], v["brake_params_file"],
                                  v["coupler_lut_file"], v["track_file"], v["start_chainage_m"])
-        return cls(dict(values), spec, build_simulator(spec, v["chunk_s"], v["tolerance_m_s"]))
+        return cls(dict(values), spec, build_simulator(spec, v["chunk_s"], v["tolerance_m_s"],
+                                                       say=say))
 
-    def rebuilt(self, changes: dict[str, Any]) -> "PlantRun | None":
+    def rebuilt(self, changes: dict[str, Any], say=None) -> "PlantRun | None":
         """The run a reset starts with the run-defining values ``changes`` now set.
 
         Parameters
         ----------
         changes : dict
             Parameter values by name (those set since, and the others unchanged).
+        say : callable, optional
+            Told about a compile of the new run's kernels (:func:`build_simulator`).
 
         Returns
         -------
@@ -192,7 +210,7 @@ class PlantRun:
         """
         if all(self.values.get(name) == value for name, value in changes.items()):
             return None
-        return PlantRun.build(self.values | changes)
+        return PlantRun.build(self.values | changes, say=say)
 
     def settings(self, follow_clock: bool = False) -> PlantSettings:
         """The plant settings of the run (see :func:`plant_settings`)."""
@@ -259,7 +277,7 @@ def reset_run(runner, run: PlantRun, values: dict[str, Any],
         run goes on.
     """
     try:
-        new = run.rebuilt(values)
+        new = run.rebuilt(values, say=log.info)  # a new train may compile its kernels
     except StartupError as exc:
         text = (f"not reset: parameter {exc.parameter}: {exc.reason}; the run goes on as it "
                 "was")

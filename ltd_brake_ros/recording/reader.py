@@ -35,7 +35,7 @@ from mcap.opcode import Opcode
 from mcap.records import Channel, Metadata, Schema, Statistics
 
 from ..inputs.schema import InputError, load_yaml
-from .layout import MAGIC, RUN_METADATA_NAME, decode_run_metadata
+from .layout import MAGIC, RUN_METADATA_NAME, decode_run_metadata, unfinished
 from .qos import parse_qos_profiles
 
 __all__ = ["read_bag", "bag_info", "BagInfo", "TopicInfo", "BagError", "TruncatedBagWarning",
@@ -686,11 +686,15 @@ def read_bag(path) -> Iterator[tuple[str, str, int, bytes]]:
     BagError
         The recording cannot be read as it is (see the module notes).
     """
-    for index in open_recording(path):
+    indexes = open_recording(path)
+    for index in indexes:
         for channel, msg_type, log, _pub, _seq, data in file_messages(index):
             yield channel.topic, msg_type, log, data
         if not index.complete:
             _warn_truncated(index)
+    left = unfinished(path)
+    if left and all(ix.complete for ix in indexes):  # closed, but metadata.yaml never came
+        warnings.warn(left, TruncatedBagWarning, stacklevel=2)
 
 
 @dataclass(frozen=True)
@@ -727,7 +731,10 @@ class BagInfo:
     start_ns, end_ns : int
         First and last log time [ns].
     complete : bool
-        Every file has its summary (False after a crash: see :func:`recover`).
+        Every file has its summary and the folder is not marked unfinished (False after a
+        crash: see :func:`recover`).
+    unfinished : str
+        Why the folder is marked unfinished (:func:`~.layout.unfinished`), else empty.
     """
 
     files: list
@@ -737,6 +744,7 @@ class BagInfo:
     start_ns: int
     end_ns: int
     complete: bool
+    unfinished: str = ""
 
 
 def bag_info(path) -> BagInfo:
@@ -785,7 +793,8 @@ def bag_info(path) -> BagInfo:
             entry = topics.setdefault(channel.topic, [msg_type, 0, qos])
             entry[1] += counts.get(cid, 0)
         total += sum(counts.get(cid, 0) for cid in ix.channels)
+    left = unfinished(path)
     return BagInfo([ix.path for ix in indexes],
                    {k: TopicInfo(k, v[0], v[1], v[2]) for k, v in topics.items()},
                    dict(indexes[0].run_metadata or {}), total, start or 0, end or 0,
-                   all(ix.complete for ix in indexes))
+                   all(ix.complete for ix in indexes) and not left, left)

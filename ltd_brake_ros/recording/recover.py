@@ -4,6 +4,7 @@ from __future__ import annotations
 import contextlib
 from pathlib import Path
 
+from .layout import UNFINISHED_NAME, unfinished
 from .reader import BagError, file_messages, open_recording
 from .writer import BagWriter
 
@@ -37,8 +38,9 @@ def recover(src, dst=None) -> dict:
     -------
     dict
         ``output`` (folder), ``messages``, ``chunks`` (complete chunks read), ``topics``
-        (messages per topic), ``complete`` (the source was already complete), ``stopped_at``
-        (why reading ended early, empty when complete).
+        (messages per topic), ``complete`` (the source was already complete, and its folder
+        not marked unfinished), ``stopped_at`` (why reading ended early or the source is
+        unfinished, empty when complete).
 
     Raises
     ------
@@ -50,6 +52,7 @@ def recover(src, dst=None) -> dict:
         Writing failed.
     """
     indexes = open_recording(src, strict=False)
+    left = unfinished(src)
     dst = Path(dst) if dst is not None else default_recover_destination(src)
     existed = dst.exists()
     writer = BagWriter(dst, flush_interval_s=float("inf"))
@@ -81,11 +84,14 @@ def recover(src, dst=None) -> dict:
             if not ix.complete or ix.error:
                 complete = False
                 reasons.append(f"{ix.path.name}: {ix.error}")
+        if left:
+            complete = False
+            reasons.append(left)
         writer.close()
     except BaseException:
         with contextlib.suppress(Exception):
             writer.close()
-        for f in (writer.path, dst / "metadata.yaml"):
+        for f in (writer.path, dst / "metadata.yaml", dst / UNFINISHED_NAME):
             with contextlib.suppress(OSError):
                 f.unlink()
         if not existed:

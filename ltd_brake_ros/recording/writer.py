@@ -17,9 +17,9 @@ from mcap.opcode import Opcode
 from mcap.records import (Channel, ChunkIndex, DataEnd, Footer, Header, Metadata, MetadataIndex,
                           Schema, Statistics, SummaryOffset)
 
+from ..outputs import new_file
 from .layout import (LIBRARY, MAGIC, ROS_DISTRO, ROSBAG2_VERSION, RUN_METADATA_NAME,
-                     decode_run_metadata, encode_run_metadata)
-from .output import checked_output
+                     decode_run_metadata, encode_run_metadata, mark_unfinished)
 from .qos import parse_qos_profiles, qos_profiles_yaml
 from .ros_types import message_definition, split_type, type_description_hash
 
@@ -52,7 +52,9 @@ class BagWriter:
     ----------
     folder : str or path-like
         Bag folder to create (it may exist if empty); the file inside is
-        ``<folder-name>_0.mcap``.
+        ``<folder-name>_0.mcap``, created exclusively, and until :meth:`close` has written
+        ``metadata.yaml`` the folder holds the marker ``UNFINISHED``
+        (:func:`~ltd_brake_ros.recording.layout.mark_unfinished`).
     metadata : dict, optional
         Free-form run information (consist summary, parameters, scenario), JSON-serialisable.
         Stored as the MCAP Metadata record ``ltd_brake_ros.run`` (each top-level key one entry,
@@ -104,6 +106,12 @@ class BagWriter:
         for existing in (self.path, self.folder / "metadata.yaml"):
             if existing.exists():
                 raise FileExistsError(f"{existing} exists: choose a new bag folder")
+        self._marker = mark_unfinished(self.folder, self.path.name)
+        try:
+            self._file = open(self.path, "xb", buffering=0)  # noqa: SIM115 - closed in close()
+        except BaseException:
+            self._marker.unlink()
+            raise
         self.compression = compression
         self.chunk_size = int(chunk_size)
         self.flush_interval_s = float(flush_interval_s)
@@ -117,7 +125,6 @@ class BagWriter:
         self._chunk = bytearray()
         self._last_flush = time.monotonic()
         # state of the writer thread (read by others only once the queue is drained)
-        self._file = open(self.path, "xb", buffering=0)  # noqa: SIM115 - closed in close()
         self._pos = 0
         self._chunk_count = 0
         self._chunk_indexes: list[ChunkIndex] = []
@@ -450,7 +457,8 @@ class BagWriter:
             return {name: t.count for name, t in self._topics.items()}
 
     def close(self) -> None:
-        """Finish the file (summary, indexes, footer) and write ``metadata.yaml``.
+        """Finish the file (summary, indexes, footer), write ``metadata.yaml`` and remove the
+        ``UNFINISHED`` marker (which stays when finishing fails).
 
         Safe to call more than once.
         """
@@ -481,8 +489,9 @@ class BagWriter:
                 raise OSError(f"writing {self.path} failed: {self._error}") from self._error
             text = yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False,
                                   default_flow_style=False)
-            with checked_output(self.folder / "metadata.yaml", encoding="utf-8") as fh:
+            with new_file(self.folder / "metadata.yaml", encoding="utf-8") as fh:
                 fh.write(text)
+            self._marker.unlink()  # finished: the folder is what ros2 bag record leaves
 
     def _summary(self) -> bytes:
         """Summary section, footer and closing magic (the writer thread is idle)."""

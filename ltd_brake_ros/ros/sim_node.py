@@ -73,7 +73,6 @@ from ..plant.recorder import Recorder  # noqa: E402
 from ..plant.run import (RUN_INPUT_PARAMETERS, PlantRun, check_run_inputs,  # noqa: E402
                          reset_run)
 from ..plant.runner import PlantRunner  # noqa: E402
-from ..simulator import compile_notice  # noqa: E402
 from ..recording.bag import message_class, type_name  # noqa: E402
 from ..recording.metadata import model_warnings, train_description  # noqa: E402
 from ..recording.plant_topics import (ARRAY_TOPICS, CLOCK_TOPIC, COMMAND_TOPICS,  # noqa: E402
@@ -136,13 +135,7 @@ class SimNode(Node):
             raise StartupError("clock", "follow cannot be combined with lockstep:=true: the "
                                "plant publishing /clock steps this one")
         log = self.get_logger()
-        notice = compile_notice()  # the paper's brake model, a train of fewer than 64 vehicles
-        if notice:
-            log.info(notice)
-        started = time.monotonic()
-        self.plant_run = PlantRun.build(p)
-        if notice:
-            log.info(f"compiled the simulation kernels in {time.monotonic() - started:.0f} s")
+        self.plant_run = PlantRun.build(p, say=log.info)  # says so if its kernels compile
         self._taps: list[Tap] = []
         # after the kernel is loaded, while discovery finds the other nodes
         clock_topic = self.resolve_topic_name(CLOCK_TOPIC)

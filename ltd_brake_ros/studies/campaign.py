@@ -659,12 +659,17 @@ def warm_up() -> None:
     the default models: numba loads the kernel from its on-disk cache (or compiles it) once
     per process, which a worker otherwise does in its first batch.
     """
+    import sys
+
+    from ..first_run import measured
+
     try:
         consist = consist_from_mapping({"name": "warm-up", "vehicles": [
             {"type": "E402B"}, {"type": "Shimmns", "mass_t": 80.0}]}, "warm-up")
-        sim = Simulator(consist, 50.0)
-        sim.advance(0.1, Commands(emergency=True))
-        sim.verdicts()
+        with measured({"consist": consist}, lambda line: print(line, file=sys.stderr)):
+            sim = Simulator(consist, 50.0)
+            sim.advance(0.1, Commands(emergency=True))
+            sim.verdicts()
     except Exception:  # noqa: BLE001 - a vehicle library without these types: the first
         pass  # batch loads the kernel instead, and reports any real problem with its runs
 

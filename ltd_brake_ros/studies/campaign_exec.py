@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 from concurrent.futures import FIRST_COMPLETED, wait
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
@@ -25,6 +24,7 @@ import pyarrow.parquet as pq
 
 from ..inputs import InputError
 from ..inputs.campaign import Campaign
+from ..outputs import write_replacing
 from ..simulator import SimulationError
 from .campaign import run_batch, schema_of, warm_up
 from .parallel import default_workers, process_pool, terminate_pool
@@ -414,32 +414,13 @@ def prepare_folder(c: Campaign, out: str | os.PathLike, create: bool = True) -> 
         _atomic_write(out / "campaign.yaml",
                       yaml.safe_dump(c.document, sort_keys=False).encode())
     else:
-        shutil.copyfile(c.source, out / "campaign.yaml")
+        write_replacing(out / "campaign.yaml", Path(c.source).read_bytes())
     _atomic_write(out / "manifest.json", (json.dumps(_manifest(c), indent=2) + "\n").encode())
-
-
-def _fsync_dir(folder: Path) -> None:
-    try:
-        fd = os.open(folder, os.O_RDONLY)
-    except OSError:  # not every platform opens directories
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
 
 
 def _atomic_write(path: Path, data: bytes) -> None:
     """Write ``data`` under a temporary name, flush it to disk, rename it into place."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
-    _fsync_dir(path.parent)
+    write_replacing(path, data)
 
 
 def _rows_of_batch(runs: int, batch_size: int, manoeuvres: int, b: int) -> int:

@@ -59,11 +59,16 @@ def _over_braked(params, lut) -> tuple[str, bool, str]:
             f"{crit.status}, vehicles beyond: {named or 'none'}, mean {worst:.3f}")
 
 
-def _long_train(params, lut) -> list[tuple[str, bool, str]]:
-    c = consist_from_mapping({"name": "E402B + 300 Shimmns (80 t, G)", "vehicles": [
+def long_train():
+    """The long train of the judgments: E402B + 300 Shimmns of 80 t, braked in G."""
+    return consist_from_mapping({"name": "E402B + 300 Shimmns (80 t, G)", "vehicles": [
         {"type": "E402B"},
         {"type": "Shimmns", "count": 300, "mass_t": 80.0, "brake_position": "G"}]},
         "long train")
+
+
+def _long_train(params, lut) -> list[tuple[str, bool, str]]:
+    c = long_train()
     out = []
     shipped = [load_brake_params(f) for f in DEFAULT_FILES]  # empirical, brake pipe
     for brake in (params if params is not None and params.model == b.model else b

@@ -29,10 +29,9 @@ def default_workers() -> int:
         The CPU affinity of this process where the platform reports it (a container or
         ``taskset`` may allow fewer cores than the machine has), else the machine's count.
     """
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not on Linux
-        return max(1, os.cpu_count() or 1)
+    from ..user_files import usable_cores
+
+    return usable_cores()
 
 
 def _orphan_guard(parent: int) -> None:

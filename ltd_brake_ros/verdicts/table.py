@@ -17,19 +17,48 @@ __all__ = ["Criterion", "Exceedance", "FLAG_NAMES", "NON_PHYSICAL_CRITERIA", "Ve
 NON_PHYSICAL_CRITERIA = ("buffer_limit_state", "coupler_travel")
 
 
+#: Shown scale, fewest decimals and suffix of each criterion unit (a ratio: three places).
+_SHOWN = {"kN": (1e-3, 0, " kN"), "K": (1.0, 0, " K"), "": (1.0, 3, "")}
+#: Most decimals a value is shown with.
+_MAX_DECIMALS = 12
+
+
+def _decimals(value: float, limit: float, least: int) -> int:
+    """Decimals (``least`` or more) with which a value beyond its limit reads as beyond it:
+    value above limit, a positive difference, and a non-zero limit not shown as zero."""
+    d = least
+    if not (math.isfinite(value) and math.isfinite(limit) and value > limit):
+        return d
+    while d < _MAX_DECIMALS and (round(value, d) <= round(limit, d)
+                                 or round(value - limit, d) <= 0.0
+                                 or (limit != 0.0 and round(limit, d) == 0.0)):
+        d += 1
+    return d
+
+
+def _percent(excess: float, limit: float) -> str:
+    """``, +x %`` of the excess over a non-zero limit, with a non-zero figure; else ``""``."""
+    if limit == 0.0 or not math.isfinite(limit):
+        return ""
+    p = 100.0 * excess / abs(limit)
+    d = 0
+    while d < _MAX_DECIMALS and round(p, d) <= 0.0:
+        d += 1
+    return f", +{p:.{d}f} %"
+
+
 def _amount(unit: str, value: float, limit: float) -> str:
-    if unit == "kN":
-        return (f"{value / 1e3:.0f} kN > {limit / 1e3:.0f} kN "
-                f"(+{(value - limit) / 1e3:.0f} kN, +{100.0 * (value - limit) / limit:.0f} %)")
     if unit == "mm":
         return f"{value:.1f} mm"
-    if unit == "K":
-        return f"{value:.0f} K > {limit:.0f} K (+{value - limit:.0f} K)"
     if unit == "km/h":
         return f"{value:.3g} km/h from rest"
     if not math.isfinite(limit):
         return f"{value:.3f}"
-    return f"{value:.3f} > {limit:.3f} (+{value - limit:.3f})"
+    scale, least, suffix = _SHOWN.get(unit, _SHOWN[""])
+    v, lim = value * scale, limit * scale
+    d = _decimals(v, lim, least)
+    margin = _percent(v - lim, lim) if unit == "kN" else ""
+    return f"{v:.{d}f}{suffix} > {lim:.{d}f}{suffix} (+{v - lim:.{d}f}{suffix}{margin})"
 
 
 #: JSON scale and key suffix of each criterion unit (``-``: none).
@@ -165,10 +194,19 @@ class Criterion:
         return next((f"{e.speed_kmh:.0f} km/h" for e in self.exceedances
                      if e.number == self.worst_number), "its maximum speed")
 
+    def _shown_decimals(self) -> int:
+        """Decimals of the row's worst value and limits: enough to show a worst value beyond
+        the highest limit beyond it (:func:`_decimals`)."""
+        scale, least, _ = _SHOWN.get(self.rule.unit, _SHOWN[""])
+        return _decimals(self.worst_value * scale, self.limit_max * scale, least) \
+            if self.exceedances else least
+
     def _limit_text(self) -> str:
         unit = self.rule.unit
-        f = ((lambda x: f"{x / 1e3:.0f} kN") if unit == "kN" else
-             (lambda x: f"{x:.0f} K") if unit == "K" else (lambda x: f"{x:.3g}"))
+        d = self._shown_decimals()
+        f = ((lambda x: f"{x / 1e3:.{d}f} kN") if unit == "kN" else
+             (lambda x: f"{x:.{d}f} K") if unit == "K" else
+             (lambda x: f"{x:.3g}") if not self.exceedances else (lambda x: f"{x:.{d}f}"))
         if unit == "mm":
             return "the travel"
         if self.limit_min == self.limit_max:
@@ -182,11 +220,12 @@ class Criterion:
         if not self.assessed:
             return [f"{self.status:<4}  {rule.title}: {self.origin}"]
         unit = rule.unit
-        worst = (f"{self.worst_value / 1e3:.0f} kN" if unit == "kN" else
+        d = self._shown_decimals()
+        worst = (f"{self.worst_value / 1e3:.{d}f} kN" if unit == "kN" else
                  f"{self.worst_value:.1f} mm" if unit == "mm" else
                  f"{self.worst_value:.3g} km/h" if unit == "km/h" else
-                 f"{self.worst_value:.0f} K ({self.worst_value - 273.15:.0f} C)" if unit == "K"
-                 else f"{self.worst_value:.3f}")
+                 f"{self.worst_value:.{d}f} K ({self.worst_value - 273.15:.{d}f} C)"
+                 if unit == "K" else f"{self.worst_value:.{d}f}")
         limit = "" if rule.severity == "INFO" else f"limit {self._limit_text()}; "
         if unit == "mm" and not self.exceedances:
             lines = [f"{self.status:<4}  {rule.title} ({rule.scope}): no coupler went beyond its "

@@ -169,3 +169,58 @@ def test_odd_run_information_is_shown_as_text_not_a_traceback(genuine, tmp_path)
     text = rep.describe()
     assert "eleven vehicles" in text and "long m" in text and "Initial speed: fast km/h" in text
     assert rep.command_time_s == 0.0  # from the recorded command, not the odd metadata
+
+
+# --------------------------------------------------------------------------- another recorder
+
+
+def _foreign(folder, stamps_s):
+    """A recording as ``ros2 bag record`` makes it of a plant of 3 vehicles: log times are
+    receive times (1 ms after each state, in list order), simulated time only in the
+    states' header stamps ``stamps_s`` [s]."""
+    from ltd_brake_ros.recording.cdr_encode import (encode_bool, encode_float64_array,
+                                                    encode_joint_state)
+
+    joint = "sensor_msgs/msg/JointState"
+    names = [f"vehicle_{i}" for i in range(3)]
+    messages = [(f"{NS}/brake_command", "std_msgs/msg/Bool", 0, encode_bool(True))]
+    for k, t in enumerate(stamps_s):
+        log = 1_000_000_000 + k * 1_000_000  # the recorder's clock, not the plant's
+        v = max(10.0 - 0.5 * t, 0.0)
+        messages += [
+            (f"{NS}/vehicles/state", joint, log, encode_joint_state(
+                round(t * 1e9), names, 10.0 * t - np.arange(3.0), np.full(3, v),
+                np.full(3, 1e4))),
+            (f"{NS}/couplers/state", joint, log, encode_joint_state(
+                round(t * 1e9), names[:2], np.zeros(2), np.zeros(2), np.full(2, -5e3))),
+            (SPEED, F64, log, encode_float64_array("vehicle", np.full(3, v)))]
+    write_messages(folder, messages, chunk_size=1 << 16)
+    return folder
+
+
+def test_a_foreign_recording_with_increasing_stamps_is_reported(tmp_path):
+    rep = analyse(_foreign(tmp_path / "one", [0.1 * k for k in range(40)]))
+    assert rep.stamped and rep.speed_time_s[-1] == pytest.approx(3.9)
+
+
+@pytest.mark.parametrize("stamps, cause", [
+    ([0.1 * k for k in range(20)] + [0.1 * k for k in range(20)], "a reset: time restarts"),
+    ([0.1 * k for k in range(20)] + [1.9] + [0.1 * k for k in range(20, 30)], "a repeated stamp"),
+    ([0.1 * k for k in range(10)] + [1.2, 1.1] + [0.1 * k for k in range(13, 20)],
+     "two states delivered out of order"),
+    ([0.1 * k for k in range(0, 40, 2)] + [0.1 * k for k in range(1, 40, 2)],
+     "two plants on one namespace, interleaved"),
+])
+def test_a_foreign_recording_whose_stamps_do_not_increase_is_refused(tmp_path, stamps, cause):
+    """Not one report of several runs mixed: one line naming the topic and the stamps."""
+    folder = _foreign(tmp_path / "mixed", stamps)
+    with pytest.raises(BagError) as err:
+        analyse(folder)
+    text = str(err.value)
+    assert "\n" not in text and str(folder) in text, cause
+    for words in (f"{NS}/vehicles/state", "not strictly increasing", "logged at",
+                  "more than one run"):
+        assert words in text, (words, text)
+    with pytest.raises(BagError) as csv_err:  # the export of its states refuses it alike
+        write_csv(RunReport(source=str(folder), namespace=NS, stamped=True), tmp_path / "csv")
+    assert str(csv_err.value) == text

@@ -7,7 +7,7 @@ from bag_helpers import DiskFull
 from cli_fixtures import one_line_error  # noqa: F401 - fixtures
 from ltd_brake_ros.cli.main import main
 from ltd_brake_ros.inputs import load_brake_params, load_coupler_lut, load_scenarios
-from ltd_brake_ros.recording import output as output_module
+from ltd_brake_ros import outputs as output_module
 from ltd_brake_ros.studies.runs import emergency_stop
 
 

@@ -20,7 +20,7 @@ from bag_helpers import PNG_END, DiskFull, record_emergency_stop
 from cli_fixtures import folder, one_line_error  # noqa: F401 - fixtures
 from ltd_brake_ros.cli.main import main
 from ltd_brake_ros.inputs import get_scenario
-from ltd_brake_ros.recording import output as output_module
+from ltd_brake_ros import outputs as output_module
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 
 from bag_helpers import PNG_END, DiskFull, plant_messages, write_messages
 from ltd_brake_ros.cli.main import main
-from ltd_brake_ros.recording import output as output_module
+from ltd_brake_ros import outputs as output_module
 from ltd_brake_ros.recording.reader import read_bag
 
 SETTINGS = dict(deadline=timedelta(seconds=30), derandomize=True,

@@ -140,10 +140,10 @@ def refresh_stale_cache(dispatcher, stamp: str | None = None) -> bool:
     except OSError:
         pass
     try:
+        from ...outputs import write_replacing
+
         cache.flush()
-        tmp = stamp_file.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(stamp)
-        os.replace(tmp, stamp_file)
+        write_replacing(stamp_file, stamp)
     except OSError:  # a read-only cache: numba does not write there either
         return False
     return True

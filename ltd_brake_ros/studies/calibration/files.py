@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ...inputs import BrakeParams
+from ...outputs import one_line
 from ...physics import brakes, couplers
 from ...physics.couplers import lut_hysteresis
 from ...physics.parameters import specs
@@ -120,7 +121,7 @@ def coupler_file_text(cal: "CouplerCalibration", command: str) -> str:
         if not spec.sequence and value == defaults[name] and not math.isfinite(value):
             continue  # an unknown strength stays unknown
         body.append(f"{spec.key or name}: {_file_value(value, spec)}  # {spec.doc}")
-    return "\n".join(head + body) + "\n"
+    return "\n".join([one_line(line) for line in head] + body) + "\n"
 
 
 def parameter_file_text(cal: Calibration, command: str) -> str:
@@ -157,7 +158,8 @@ def parameter_file_text(cal: Calibration, command: str) -> str:
                     + (f"  ({t.reference})" if len(ref) > 1 else ""))
     head += _fitted_lines(cal)
     head += _held_and_warnings(cal)
-    return "\n".join(head + parameter_lines(cal.params)) + "\n"
+    return "\n".join([one_line(line) for line in head]
+                     + parameter_lines(cal.params)) + "\n"
 
 
 def parameter_lines(params: BrakeParams) -> list[str]:
