@@ -19,6 +19,41 @@ pip_install() {
   "$VENV/bin/python" -m pip install --quiet "$@" 2> >(grep -v 'is ignored: it is neither' >&2)
 }
 
+build_interfaces() {
+  # The interface packages the node uses that are not among the PyPI ROS wheels
+  # (simulation_interfaces, tf2_msgs), generated from interfaces/ with the rosidl wheels into
+  # the environment itself (its lib/ is on the wheels' library path); rebuilt only when their
+  # definitions or the pinned versions change (build folders kept: a rebuild is incremental)
+  local stamp pkg build log
+  stamp="$VENV/.interfaces-$( (cat requirements.txt; find interfaces -type f | LC_ALL=C sort \
+    | xargs cat) | sha1sum | cut -c1-12)"
+  [ -f "$stamp" ] && return 0
+  if ! command -v cmake > /dev/null || ! command -v c++ > /dev/null; then
+    echo "not building simulation_interfaces and tf2_msgs: cmake and a C++ compiler are" \
+         "needed; sim_node runs without the simulation_interfaces services and /tf" >&2
+    return 0
+  fi
+  echo "building simulation_interfaces and tf2_msgs into $VENV (first run only, about a minute)" >&2
+  for pkg in tf2_msgs simulation_interfaces; do
+    build="$VENV/build/interfaces/$pkg"
+    log="$build/build.log"
+    mkdir -p "$build"
+    if ! ( export _ROS_WHEELS_BOOTSTRAP_COMPLETE=1 AMENT_PREFIX_PATH="$PWD/$VENV" \
+             CMAKE_PREFIX_PATH="$PWD/$VENV" PATH="$PWD/$VENV/bin:$PATH" \
+             LD_LIBRARY_PATH="$PWD/$VENV/lib:$(ls -d "$PWD/$VENV"/lib/python3*/site-packages/ros_*.libs | paste -sd:)"
+           cmake -S "interfaces/$pkg" -B "$build" -DBUILD_TESTING=OFF \
+             -DCMAKE_INSTALL_PREFIX="$PWD/$VENV" -DPython3_EXECUTABLE="$PWD/$VENV/bin/python" \
+             -DCMAKE_PROJECT_INCLUDE="$PWD/interfaces/wheel_paths.cmake" \
+           && cmake --build "$build" -j "$(nproc)" && cmake --install "$build" ) > "$log" 2>&1; then
+      echo "building $pkg failed; the last lines of $log:" >&2
+      tail -15 "$log" >&2
+      exit 1
+    fi
+  done
+  rm -f "$VENV"/.interfaces-*
+  touch "$stamp"
+}
+
 setup() {
   if [ ! -x "$VENV/bin/python" ]; then
     echo "creating virtual environment $VENV" >&2
@@ -34,6 +69,7 @@ setup() {
     rm -f "$VENV"/.installed-*
     touch "$stamp"
   fi
+  build_interfaces
   export PATH="$PWD/$VENV/bin:$PATH"
   # DDS discovery stays on this machine unless the caller says otherwise
   export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"

@@ -48,6 +48,7 @@ setup(
             "ros-jazzy-rclpy>=7.1,<8",
             "ros-jazzy-common-interfaces>=5.3,<6",
             "ros-jazzy-rosgraph-msgs>=2.0,<3",
+            "ros-jazzy-nav-msgs>=5.3,<6",
             "ros-jazzy-rmw-fastrtps-cpp>=8.4,<9",
         ],
         # ltd-brake campaign: Dask distributed executor, Parquet results, SALib (the sobol and

@@ -40,6 +40,7 @@ import rclpy
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rcl_interfaces.srv import GetParameters
 from rclpy.duration import Duration
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
@@ -54,6 +55,10 @@ KMH_PER_M_S = 3.6
 QUERY_RETRY_S = 1.0
 #: Same QoS as the plant's inputs and state topics: reliable, so nothing is lost in lock-step.
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+
+
+class ParameterError(ValueError):
+    """A parameter value the controller cannot use (one line names it and why)."""
 
 
 def _clip(value: float, lo: float, hi: float) -> float:
@@ -215,8 +220,23 @@ class SpeedController(Node):
             if limits is not None:
                 descriptor.floating_point_range = [
                     FloatingPointRange(from_value=limits[0], to_value=limits[1], step=0.0)]
-            values[name] = self.declare_parameter(name, default, descriptor).value
+            try:
+                values[name] = self.declare_parameter(name, default, descriptor).value
+            except InvalidParameterValueException:
+                given = self._given(name)
+                raise ParameterError(f"parameter {name}: {given!r} is out of range, expected "
+                                     f"{limits[0]:g} to {limits[1]:g}") from None
+            except InvalidParameterTypeException:
+                given = self._given(name)
+                kind = "text" if isinstance(default, str) else \
+                    f"a number with a decimal point (e.g. {default!r})"
+                raise ParameterError(f"parameter {name}: {given!r} is not {kind}") from None
         return values
+
+    def _given(self, name: str):
+        """The value given for ``name`` on the command line or in a parameter file."""
+        override = self._parameter_overrides.get(name)
+        return None if override is None else override.value
 
     def _on_state(self, msg: JointState) -> None:
         # a state is known by its simulated time, however late it arrives
@@ -353,7 +373,7 @@ def main(args: list[str] | None = None) -> int:
         return 0
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
-    except (RuntimeError, TimeoutError) as exc:
+    except (RuntimeError, TimeoutError, ParameterError) as exc:
         rclpy.logging.get_logger("speed_controller").error(str(exc))
         return 1
     finally:

@@ -65,8 +65,13 @@ PARAMETER_ARGUMENTS = {
     "shutdown_after_stop_s": ("shutdown_after_stop_s", "float",
                               "Stop (and end the launch) this long after the train has stopped "
                               "[s simulated]; -1 = never"),
+    "tf_vehicle_rate_hz": ("tf_vehicle_rate_hz", "float",
+                           "Rate of each vehicle's frame on /tf in simulated time [Hz]; 0 = the "
+                           "head's frame (base_link) only"),
     "record": ("record", "bool",
                "Record everything published and received to an MCAP bag folder"),
+    "record_frames": ("record_frames", "bool",
+                      "With record: also record /tf, odom and train/markers"),
     "record_dir": ("record_dir", "str",
                    "Bag folder, which must not exist or be empty (the node's default: "
                    "runs/run_<date>-<time> in the working directory)"),

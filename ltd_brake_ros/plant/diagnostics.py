@@ -16,6 +16,9 @@ from ..verdicts import diagnostic_values
 OK, WARN, ERROR = 0, 1, 2
 #: Wall time between two diagnostics reports [s].
 DIAGNOSTICS_PERIOD_S = 1.0
+#: Simulated time between two diagnostics reports of a plant the wall clock does not pace
+#: (real_time_factor 0, lock-step, following a clock), besides the wall-time ones [s].
+DIAGNOSTICS_SIM_PERIOD_S = 1.0
 
 
 def format_fixed(value: float, digits: int = 3) -> str:

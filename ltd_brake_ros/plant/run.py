@@ -252,7 +252,8 @@ class PlantRun:
 
 
 def reset_run(runner, run: PlantRun, values: dict[str, Any],
-              prepare: Callable[[PlantRun], list], log) -> tuple[bool, str, PlantRun]:
+              prepare: Callable[[PlantRun], list], log,
+              hold: bool = False) -> tuple[bool, str, PlantRun]:
     """Reset a plant, to a new run when run-defining values were set since ``run`` was built.
 
     Parameters
@@ -268,6 +269,8 @@ def reset_run(runner, run: PlantRun, values: dict[str, Any],
         run publishes (the brake model's extra state) and returns the topics its recording
         declares (see :meth:`~.runner.PlantRunner.reset`).
     log : logger
+    hold : bool, optional
+        Hold at t = 0 afterwards (a stop, see :meth:`~.runner.PlantRunner.reset`).
 
     Returns
     -------
@@ -284,11 +287,11 @@ def reset_run(runner, run: PlantRun, values: dict[str, Any],
         log.error(text)
         return False, text, run
     if new is None:
-        return (*runner.result(runner.reset()), run)
+        return (*runner.result(runner.reset(hold=hold)), run)
     topics = prepare(new)
     recording = None if runner.recorder is None else (topics, new.metadata())
     ok, text = runner.result(runner.reset((new.sim, new.settings(runner.settings.follow_clock)),
-                                          recording))
+                                          recording, hold))
     if not ok:
         return False, text, run
     log.info(f"new run: {new.describe()}")

@@ -14,9 +14,16 @@ several trains share one simulated time.
 Nothing here imports ROS: the host passes callbacks that publish a state, publish a diagnostics
 report and observe a handled input, a logger, and the clock (:class:`~.pacing.Clock`), so pacing,
 lock-step and the run policy are tested with a fake clock.
+
+A step of any length stays interruptible: between two of its chunks the plant serves the urgent
+requests (pause and resume, the real-time factor, the simulation state) and shutdown; a pause
+of a lock-step plant (or the resumption of a paused free-running one) ends the step there.
+Inputs, resets and further steps wait for the step's end, so a step runs with the commands
+that reached the plant before it, whatever its length.
 """
 from __future__ import annotations
 
+import math
 import queue
 import threading
 from collections import deque
@@ -25,8 +32,8 @@ from typing import Any, Callable, Mapping
 
 from ..inputs.commands import COMMAND_RANGES, VALVE_POSITIONS, valve_position
 from ..simulator import Commands, SimulationError, Simulator, Snapshot
-from .diagnostics import (DIAGNOSTICS_PERIOD_S, PaceWindow, PlantStatus, format_fixed,
-                          plant_status)
+from .diagnostics import (DIAGNOSTICS_PERIOD_S, DIAGNOSTICS_SIM_PERIOD_S, PaceWindow,
+                          PlantStatus, format_fixed, plant_status)
 from .pacing import Clock, Pacer
 from .recorder import Recorder
 from .settings import PlantSettings, StartupError
@@ -58,6 +65,10 @@ INPUTS = ("emergency", *COMMAND_RANGES, "driver_brake_valve")
 FOLLOW_SLICE_S = 0.05
 #: A followed clock further ahead than this is a jump, logged once with the gap [s simulated].
 FOLLOW_JUMP_S = 60.0
+#: States of the simulation (:meth:`PlantRunner.simulation_state`,
+#: :meth:`PlantRunner.set_simulation_state`): time advances by itself; time holds (stepping
+#: advances it); stopped (reset to t = 0 and holding); the node is shutting down.
+PLAYING, PAUSED, STOPPED, QUITTING = "playing", "paused", "stopped", "quitting"
 #: Why a following plant refuses to be stepped or paused.
 FOLLOWING = ("this plant follows the clock of another (clock:=follow): it advances with that "
              "clock; step or pause the plant that publishes it")
@@ -102,6 +113,17 @@ class Job:
 
     def __init__(self, fn: Callable[[], Any]):
         self.fn, self.done, self.result = fn, threading.Event(), None
+
+    def run(self, log_error: Callable[[str], None] | None) -> None:
+        """Run ``fn`` (on the plant thread); an exception is its failure, never the plant's."""
+        try:
+            self.result = self.fn()
+        except Exception as exc:  # noqa: BLE001 - a bad job must not stop the plant
+            if log_error is not None:  # else: shutting down, the outputs are gone
+                log_error(f"{type(exc).__name__}: {exc}")
+            self.result = (False, f"{type(exc).__name__}: {exc}")
+        finally:
+            self.done.set()
 
 
 class PlantRunner:
@@ -183,6 +205,10 @@ class PlantRunner:
         self._lut_warned = False
         self._limits_logged: set[str] = set()  # criteria whose first exceedance was logged
         self._jobs: queue.SimpleQueue[Job] = queue.SimpleQueue()
+        #: Jobs served between two chunks of a step too (:meth:`submit` ``urgent``).
+        self._urgent: queue.SimpleQueue[Job] = queue.SimpleQueue()
+        #: True from a request to stop (reset and hold) until the plant moves again.
+        self.stopped = False
         self._wake = threading.Event()
         self._quit = threading.Event()
         self._thread = threading.Thread(target=self.run, name="plant", daemon=True)
@@ -191,6 +217,7 @@ class PlantRunner:
         self._next_index = 1
         self._window = PaceWindow(now)
         self._next_status_wall = 0.0
+        self._next_status_sim = DIAGNOSTICS_SIM_PERIOD_S
         self._gil_held_s = 0.0
         self._last_chunk_end = now
         #: Wall time of the last ``Simulator.advance`` [s] (its compiled part frees the GIL).
@@ -216,10 +243,18 @@ class PlantRunner:
         if self.recorder is not None:
             self.recorder.close()
 
-    def submit(self, fn: Callable[[], Any]) -> Job:
-        """Queue ``fn`` to run on the plant thread between two chunks."""
+    def submit(self, fn: Callable[[], Any], urgent: bool = False) -> Job:
+        """Queue ``fn`` to run on the plant thread between two chunks.
+
+        Parameters
+        ----------
+        fn : callable
+        urgent : bool, optional
+            Also between two chunks of a step (which holds the others until it ends): for
+            requests that must not wait for a long step (pause, real-time factor, state).
+        """
         job = Job(fn)
-        self._jobs.put(job)
+        (self._urgent if urgent else self._jobs).put(job)
         self._wake.set()
         return job
 
@@ -238,7 +273,7 @@ class PlantRunner:
         return self.submit(lambda: self._on_input(name, value, message))
 
     def reset(self, replacement: tuple[Simulator, PlantSettings] | None = None,
-              recording: tuple[list, dict] | None = None) -> Job:
+              recording: tuple[list, dict] | None = None, hold: bool = False) -> Job:
         """Request the initial state (t = 0, brake released); a new bag when recording.
 
         Parameters
@@ -249,17 +284,72 @@ class PlantRunner:
             stay those in force.
         recording : (list, dict), optional
             Topics and metadata of the new run's bag (see :meth:`Recorder.reopen`).
+        hold : bool, optional
+            Stop: pause at t = 0 (a lock-step plant refuses steps) until played or paused
+            (:meth:`set_simulation_state`).
         """
-        return self.submit(lambda: self._reset(replacement, recording))
+        return self.submit(lambda: self._reset(replacement, recording, hold))
 
     def pause(self, pause: bool) -> Job:
-        """Request a pause (True) or the end of one (False)."""
-        return self.submit(lambda: self._pause(bool(pause)))
+        """Request a pause (True) or the end of one (False); served within a chunk, during a
+        step too (which it ends, if the plant can no longer be stepped)."""
+        return self.submit(lambda: self._pause(bool(pause)), urgent=True)
 
-    def step(self) -> Job:
-        """Request :attr:`steps_per_call` chunks (lock-step mode or paused only)."""
-        chunks = self.steps_per_call
+    def step(self, chunks: int | None = None) -> Job:
+        """Request ``chunks`` chunks, by default :attr:`steps_per_call` (lock-step mode or
+        paused only)."""
+        chunks = self.steps_per_call if chunks is None else int(chunks)
         return self.submit(lambda: self._step(chunks))
+
+    def simulation_state(self) -> tuple[str, str]:
+        """The state of the simulation and a line on it, read from any thread.
+
+        Returns
+        -------
+        state : str
+            :data:`QUITTING` once the run ended (the node shuts down), :data:`STOPPED` after
+            a stop request until the plant moves again, :data:`PLAYING` while simulated time
+            advances by itself (free-running, or following a clock), else :data:`PAUSED` (a
+            lock-step plant between steps, a paused plant, a failed one).
+        why : str
+            Empty, or what holds the plant (a failure, a pause of a lock-step plant).
+        """
+        if self.finished.is_set():
+            return QUITTING, self.finish_reason
+        if self.failure:
+            return PAUSED, f"simulation failed: {self.failure}; reset it"
+        if self.stopped:
+            return STOPPED, ""
+        if self.settings.follow_clock:
+            return PLAYING, "it advances with the clock it follows"
+        if self.settings.lockstep:
+            return PAUSED, ("held by ~/pause: steps are refused until it is resumed"
+                            if self.paused else "")
+        return (PAUSED if self.paused else PLAYING), ""
+
+    def set_simulation_state(self, target: str) -> Job:
+        """Request :data:`PLAYING`, :data:`PAUSED` or :data:`QUITTING`; served within a chunk,
+        during a step too. The job's result is ``(outcome, message)``.
+
+        ``outcome`` is ``ok``, ``already`` (the plant was in that state), ``refused`` (no such
+        transition from here, or for this plant) or ``failed`` (the plant failed).
+        :data:`PLAYING` resumes a paused free-running plant (a lock-step plant advances only
+        when stepped); :data:`PAUSED` pauses one, or lets a held lock-step plant be stepped
+        again; :data:`QUITTING` ends the run (the node shuts down). A stop is a reset with
+        ``hold`` (:meth:`reset`), after :meth:`stop_refusal`.
+        """
+        return self.submit(lambda: self._set_state(target), urgent=True)
+
+    def stop_refusal(self) -> tuple[str, str] | None:
+        """``(outcome, message)`` when a stop cannot or need not happen, else None."""
+        if self.finished.is_set():
+            return "refused", (f"the run has ended ({self.finish_reason}); the node is "
+                               "shutting down")
+        if self.settings.follow_clock:
+            return "refused", FOLLOWING
+        if self.stopped:
+            return "already", "stopped at t = 0 s"
+        return None
 
     def follow(self, time_ns: int) -> None:
         """Let a following plant advance to the followed clock's ``time_ns`` [ns].
@@ -273,8 +363,9 @@ class PlantRunner:
             self.submit(self._follow)
 
     def set_real_time_factor(self, value: float) -> Job:
-        """Request a new real-time factor; the schedule restarts from now."""
-        return self.submit(lambda: self._set_real_time_factor(value))
+        """Request a new real-time factor; the schedule restarts from now (served within a
+        chunk, during a step too)."""
+        return self.submit(lambda: self._set_real_time_factor(value), urgent=True)
 
     def yield_to_plant(self) -> None:
         """On a receiving thread: wait while a paced chunk is due (see YIELD_LEAD_S).
@@ -367,30 +458,34 @@ class PlantRunner:
             recording="off" if rec is None else rec.state,
             recording_error=None if rec is None else rec.error)
 
-    def _run_jobs(self) -> None:
-        # only the jobs queued so far: a flood of inputs must not starve the chunks
-        for _ in range(self._jobs.qsize()):
+    def _run_jobs(self, jobs: queue.SimpleQueue | None = None) -> None:
+        # only the jobs queued so far: a flood of inputs must not starve the chunks; the
+        # urgent ones first
+        if jobs is None:
+            self._run_jobs(self._urgent)
+            jobs = self._jobs
+        for _ in range(jobs.qsize()):
             try:
-                job = self._jobs.get_nowait()
+                job = jobs.get_nowait()
             except queue.Empty:
                 return
-            try:
-                job.result = job.fn()
-            except Exception as exc:  # noqa: BLE001 - a bad job must not stop the plant
-                if self._host_ok():  # else: shutting down, the outputs are gone
-                    self._log.error(f"{type(exc).__name__}: {exc}")
-                job.result = (False, f"{type(exc).__name__}: {exc}")
-            finally:
-                job.done.set()
+            job.run(self._log.error if self._host_ok() else None)
 
     def _maybe_report(self) -> float:
+        # every wall period; and every simulated period when the wall clock does not pace
+        # the plant, so that its recording holds reports by simulated time at any speed
         now = self._clock.monotonic()
-        if now >= self._next_status_wall:
+        s = self.settings
+        if now >= self._next_status_wall or (
+                (self.real_time_factor <= 0.0 or s.lockstep or s.follow_clock)
+                and self.sim.time_s >= self._next_status_sim - TIME_EPS_S):
             self._report(now)
         return now
 
     def _report(self, now: float) -> None:
         self._next_status_wall = now + DIAGNOSTICS_PERIOD_S
+        period = DIAGNOSTICS_SIM_PERIOD_S
+        self._next_status_sim = (math.floor(self.sim.time_s / period + TIME_EPS_S) + 1) * period
         self._publish_status(self._status(now))
 
     def _free_running(self) -> bool:
@@ -556,7 +651,7 @@ class PlantRunner:
             self._log.warning(f"{self._labels.get(name, name)}: {text} "
                               f"({self.rejected[name]} rejected so far)")
 
-    def _reset(self, replacement=None, recording_of_run=None) -> tuple[bool, str]:
+    def _reset(self, replacement=None, recording_of_run=None, hold=False) -> tuple[bool, str]:
         rec, recording = self.recorder, ""
         if rec is not None:
             # one run per bag (the report assumes it): the next run's bag is opened first, so
@@ -589,10 +684,17 @@ class PlantRunner:
         self._lut_warned = False
         self._limits_logged = set()
         self.failure = None
+        self._next_status_sim = DIAGNOSTICS_SIM_PERIOD_S
         self._publish(snap)
         now = self._clock.monotonic()
         self._restart_schedule(now)
         self._window.restart(now, 0.0)
+        self.stopped = False
+        if hold:
+            self.paused = self.stopped = True
+            self._log.info("stopped: initial state, brake released, t = 0 s, holding")
+            return True, (f"stopped: reset to the initial state (brake released, t = 0 s), "
+                          f"holding until played or paused{recording}")
         self._log.info("reset: initial state, brake released, t = 0 s")
         return True, f"reset to the initial state (brake released, t = 0 s){recording}"
 
@@ -601,6 +703,7 @@ class PlantRunner:
             return False, FOLLOWING
         if self.paused and not pause:
             self._restart_schedule(self._clock.monotonic())
+            self.stopped = False
         self.paused = pause
         text = f"{'paused' if pause else 'running'} at t = {self.sim.time_s:.3f} s"
         if self.settings.lockstep:
@@ -622,21 +725,79 @@ class PlantRunner:
             return False, f"simulation failed: {self.failure}; call ~/reset"
         if self.finished.is_set():
             return False, "max_sim_time_s reached; the node is shutting down"
-        done = 0
-        while done < chunks and not self.finished.is_set() and not self._quit.is_set():
+        if chunks < 1:
+            return False, f"a step is at least 1 chunk, got {chunks}"
+        self.stopped = False
+        done, stopped_by = 0, ""
+        while done < chunks:
             # the last chunk of a request is always published: it answers the request
             if not self._run_chunk(done + 1 == chunks or self._publish_due()):
                 return False, f"simulation failed: {self.failure}; call ~/reset"
             done += 1
             self._maybe_report()
+            if self.finished.is_set():  # a run limit: the step ends with the run
+                break
+            if done < chunks:
+                stopped_by = self._between_step_chunks()
+                if stopped_by:
+                    break
         c = self.commands
         # the inputs the chunks ran with (exact values), so a controller can check that its
         # last command was in the step
-        return True, (f"advanced {done} chunk(s) to t = {self.sim.time_s:.3f} s with "
-                      f"emergency={str(c.emergency).lower()} "
-                      f"brake_demand={c.brake_demand!r} traction={c.traction!r} "
-                      f"overcharge={str(c.overcharge).lower()} "
-                      f"(inputs handled: {self.handled})")
+        text = (f"advanced {done} chunk(s) to t = {self.sim.time_s:.3f} s with "
+                f"emergency={str(c.emergency).lower()} "
+                f"brake_demand={c.brake_demand!r} traction={c.traction!r} "
+                f"overcharge={str(c.overcharge).lower()} "
+                f"(inputs handled: {self.handled})")
+        if stopped_by:
+            return False, f"{stopped_by} after {done} of {chunks} chunks: {text}"
+        return True, text
+
+    def _between_step_chunks(self) -> str:
+        """Serve the urgent requests and the recorder between two chunks of a step; why the
+        step ends here, or empty."""
+        if self.recorder is not None:
+            self.recorder.flush_if_due()
+        self._run_jobs(self._urgent)
+        if self._quit.is_set():
+            return "interrupted by shutdown"
+        if self.finished.is_set():
+            return f"interrupted: {self.finish_reason}"
+        if self.settings.lockstep and self.paused:
+            return "interrupted by a pause"
+        if not self.settings.lockstep and not self.paused:
+            return "interrupted: the plant was resumed"
+        return ""
+
+    def _set_state(self, target: str) -> tuple[str, str]:
+        state, _ = self.simulation_state()
+        s = self.settings
+        if target == QUITTING:
+            if state == QUITTING:
+                return "already", "the run has ended; the node is shutting down"
+            self._log.info("quitting on request: shutting down")
+            self._finish("quit on request")
+            return "ok", "the run ends; the node shuts down"
+        if target not in (PLAYING, PAUSED):
+            return "refused", f"no such state here: {target!r}"
+        if state == QUITTING:
+            return "refused", f"the run has ended ({self.finish_reason}); the node is shutting down"
+        if s.follow_clock:
+            return "refused", FOLLOWING
+        if self.failure:
+            return "failed", f"simulation failed: {self.failure}; reset it"
+        if target == PLAYING:
+            if s.lockstep:
+                return "refused", ("a lock-step plant (lockstep:=true) advances only when "
+                                   "stepped; start it with lockstep:=false to play it")
+            if state == PLAYING:
+                return "already", f"playing at t = {self.sim.time_s:.3f} s"
+            return "ok", self._pause(False)[1]
+        # PAUSED: a free-running plant holds; a held lock-step plant may be stepped again
+        if state == PAUSED and not (s.lockstep and self.paused):
+            return "already", f"paused at t = {self.sim.time_s:.3f} s"
+        self.stopped = False
+        return "ok", self._pause(not s.lockstep)[1]
 
     def _follow(self) -> None:
         # advance whole chunks up to the followed clock's latest time

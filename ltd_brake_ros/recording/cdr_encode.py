@@ -10,8 +10,9 @@ import struct
 
 import numpy as np
 
-__all__ = ["Float64ArrayEncoder", "JointStateEncoder", "encode_bool", "encode_clock",
-           "encode_float64", "encode_float64_array", "encode_joint_state"]
+__all__ = ["Float64ArrayEncoder", "JointStateEncoder", "OdometryEncoder", "TFMessageEncoder",
+           "encode_bool", "encode_clock", "encode_float64", "encode_float64_array",
+           "encode_joint_state"]
 
 #: CDR encapsulation header: plain CDR, little endian.
 _HEADER = b"\x00\x01\x00\x00"
@@ -156,6 +157,102 @@ def encode_joint_state(stamp_ns: int, names, position, velocity, effort,
     bytes
     """
     return JointStateEncoder(names, frame_id).encode(stamp_ns, position, velocity, effort)
+
+
+def _header(buf: bytearray, frame_id: str) -> int:
+    """Append a ``std_msgs/Header`` with a zero stamp; the stamp's offset in ``buf``."""
+    _pad(buf, 4)
+    offset = len(buf)
+    buf += b"\x00" * 8  # stamp: sec, nanosec
+    _string(buf, frame_id)
+    return offset
+
+
+def _doubles(buf: bytearray, values) -> int:
+    """Append float64 values (aligned); the offset of the first in ``buf``."""
+    _pad(buf, 8)
+    offset = len(buf)
+    buf += struct.pack(f"<{len(values)}d", *values)
+    return offset
+
+
+class TFMessageEncoder:
+    """``tf2_msgs/msg/TFMessage`` messages of fixed frames, translated along x only.
+
+    Every transform has the same stamp, a translation (x, 0, 0) and the identity rotation
+    (frames along a straight, level track); names are laid out once.
+
+    Parameters
+    ----------
+    frames : sequence of (str, str)
+        ``(header.frame_id, child_frame_id)`` of each transform.
+    """
+
+    def __init__(self, frames):
+        frames = list(frames)
+        self.n = len(frames)
+        buf = bytearray(_HEADER)
+        buf += struct.pack("<I", self.n)
+        stamps, xs = [], []
+        for parent, child in frames:
+            stamps.append(_header(buf, parent))
+            _string(buf, child)
+            xs.append(_doubles(buf, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)))
+        self._buf = np.frombuffer(bytearray(buf), dtype=np.uint8)
+        # CDR aligns from byte 4: every value sits at 4 + its size times k
+        self._sec = self._buf[4:].view("<i4")
+        self._nsec = self._buf[4:].view("<u4")
+        self._stamp = (np.asarray(stamps, dtype=np.int64) - 4) // 4
+        self._x = self._buf[4:4 + (len(buf) - 4) // 8 * 8].view("<f8")
+        self._xi = (np.asarray(xs, dtype=np.int64) - 4) // 8
+
+    def encode(self, stamp_ns: int, x_m) -> bytes:
+        """The message at ``stamp_ns`` [ns] with each transform's translation along x [m].
+
+        Raises
+        ------
+        ValueError
+            ``x_m`` does not hold one value per transform.
+        """
+        x = np.asarray(x_m, dtype=float)
+        if x.shape != (self.n,):
+            raise ValueError(f"expected {self.n} values, got {x.size}")
+        sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
+        self._sec[self._stamp] = sec
+        self._nsec[self._stamp + 1] = nanosec
+        self._x[self._xi] = x
+        return self._buf.tobytes()
+
+
+class OdometryEncoder:
+    """``nav_msgs/msg/Odometry`` messages of a body moving along x of its parent frame.
+
+    Position (x, 0, 0), the identity orientation, a linear velocity (v, 0, 0) in the body's
+    frame, no rotation; covariances all zero (the simulated state is exact).
+
+    Parameters
+    ----------
+    frame_id : str
+        ``header.frame_id`` (the fixed frame).
+    child_frame_id : str
+        The body's frame.
+    """
+
+    def __init__(self, frame_id: str, child_frame_id: str):
+        buf = bytearray(_HEADER)
+        self._stamp = _header(buf, frame_id)
+        _string(buf, child_frame_id)
+        self._x = _doubles(buf, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0) + (0.0,) * 36)
+        self._v = _doubles(buf, (0.0,) * 6 + (0.0,) * 36)
+        self._buf = buf
+
+    def encode(self, stamp_ns: int, x_m: float, v_m_s: float) -> bytes:
+        """The message at ``stamp_ns`` [ns]: position ``x_m`` [m], speed ``v_m_s`` [m/s]."""
+        sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
+        struct.pack_into("<iI", self._buf, self._stamp, sec, nanosec)
+        struct.pack_into("<d", self._buf, self._x, float(x_m))
+        struct.pack_into("<d", self._buf, self._v, float(v_m_s))
+        return bytes(self._buf)
 
 
 def encode_bool(value: bool) -> bytes:

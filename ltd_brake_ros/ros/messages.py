@@ -31,6 +31,10 @@ DIAGNOSTICS_QOS = STATE_QOS
 DESCRIPTION_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                              reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: /tf: as tf2_ros broadcasts it (reliable, volatile, a deep queue for bursts of transforms).
+TF_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                    reliability=ReliabilityPolicy.RELIABLE,
+                    durability=DurabilityPolicy.VOLATILE)
 #: Markers: only the newest picture matters.
 MARKERS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          reliability=ReliabilityPolicy.RELIABLE,
@@ -116,8 +120,9 @@ def marker_array_msg(specs, frame_id: str, time_ns: int, prefix: str = ""):
     kinds = {"cube": Marker.CUBE, "text": Marker.TEXT_VIEW_FACING}
     out = MarkerArray()
     for m in specs:
+        # frame_locked: a view moves the markers with their frame between two pictures
         marker = Marker(ns=f"{prefix}{m.ns}", id=int(m.id), type=kinds[m.kind],
-                        action=Marker.ADD, text=m.text, frame_locked=False,
+                        action=Marker.ADD, text=m.text, frame_locked=True,
                         pose=Pose(position=Point(x=m.x, y=m.y, z=m.z),
                                   orientation=Quaternion(w=1.0)),
                         scale=Vector3(x=float(m.size[0]), y=float(m.size[1]),

@@ -129,8 +129,15 @@ PARAMETERS = (
     ParamSpec("start_chainage_m", 0.0,
               "Chainage of the head's front at t = 0 [m] (overrides the track file's)",
               lo=-1e7, hi=1e7, at_reset=True),
+    ParamSpec("tf_vehicle_rate_hz", 10.0,
+              "Rate of each vehicle's frame (<prefix>vehicle_<i>, child of <prefix>base_link) "
+              "on /tf in simulated time [Hz]; 0 = the head's frame only (base_link goes out "
+              "with every published chunk)", lo=0.0, hi=1000.0),
     ParamSpec("record", False,
               "Record every published and received message to an MCAP bag folder"),
+    ParamSpec("record_frames", False,
+              "With record: also record /tf, odom and train/markers (the markers then drawn "
+              "at tf_vehicle_rate_hz of simulated time, whether or not anyone subscribes)"),
     ParamSpec("record_dir", "",
               "Bag folder for record:=true, which must not exist or be empty; empty = "
               "runs/run_<date>-<time> in the working directory; after ~/reset the next run "

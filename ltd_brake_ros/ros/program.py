@@ -246,7 +246,7 @@ class NodeProgram(Protocol):
 
 def run(name: str, args: list[str] | None, make_node: Callable[[list[str]], NodeProgram], *,
         usage: str, signals: Signals | None = None, positional: Iterable[str] = (),
-        errors: tuple[type[BaseException], ...] = ()) -> int:
+        errors: tuple[type[BaseException], ...] = (), threads: int = 1) -> int:
     """Run a node program from its command line to its exit (see the module docstring).
 
     Parameters
@@ -266,6 +266,9 @@ def run(name: str, args: list[str] | None, make_node: Callable[[list[str]], Node
         Names of the arguments allowed outside ``--ros-args``.
     errors : tuple of exception types
         Errors reported as one line (besides input errors and rcl's argument errors).
+    threads : int, optional
+        Executor threads: more than 1 lets callbacks of different callback groups run while
+        one waits (a multi-threaded executor).
 
     Returns
     -------
@@ -273,7 +276,8 @@ def run(name: str, args: list[str] | None, make_node: Callable[[list[str]], Node
         0 after a clean end (a signal included), 1 when the node cannot start or failed.
     """
     import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.executors import (ExternalShutdownException, MultiThreadedExecutor,
+                                 SingleThreadedExecutor)
     from rclpy.signals import SignalHandlerOptions
 
     from ..inputs import InputError
@@ -301,7 +305,8 @@ def run(name: str, args: list[str] | None, make_node: Callable[[list[str]], Node
                 rcl.set_level(level)
             node = make_node(_split_arguments(argv)[0])
         node.start()
-        executor = SingleThreadedExecutor()
+        executor = SingleThreadedExecutor() if threads <= 1 else \
+            MultiThreadedExecutor(num_threads=threads)
         executor.add_node(node)
         while rclpy.ok() and signals.received is None and node.running():
             executor.spin_once(timeout_sec=SPIN_PERIOD_S)

@@ -19,10 +19,14 @@ one behind it:
   ``vehicles/<quantity>``; ``/clock`` when it is the clock source; ``/diagnostics`` about
   once per wall second; ``train/description`` (``std_msgs/String``, JSON: the run, every
   vehicle and coupler with its joint name, units and signs) once per run, latched
-  (transient-local) for tools that join late; ``train/markers``
-  (``visualization_msgs/MarkerArray`` in frame ``map``: a box per vehicle coloured by its
+  (transient-local) for tools that join late; ``odom`` (``nav_msgs/Odometry`` of the head) and
+  ``/tf`` (``map`` -> ``<prefix>base_link``, the head, with every published chunk;
+  ``<prefix>vehicle_<i>`` at ``tf_vehicle_rate_hz``; see :mod:`~ltd_brake_ros.recording.frames`;
+  ``/tf`` only where ``tf2_msgs`` is installed); ``train/markers``
+  (``visualization_msgs/MarkerArray`` in the head's frame: a box per vehicle coloured by its
   brake, a box per coupler coloured by its force against its strength, labels; about 10 per
-  wall second, only while subscribed);
+  wall second while subscribed, and at ``tf_vehicle_rate_hz`` of simulated time when
+  ``record_frames`` records them);
 * ``clock``: ``auto`` publishes ``/clock`` unless another node already does, then follows it;
   ``follow`` advances to the ``/clock`` of another plant (several trains, one simulated time);
   a second ``/clock`` publisher is warned about, naming it;
@@ -32,11 +36,16 @@ one behind it:
   ``driver_brake_valve`` (``std_msgs/String``: a position of the driver's brake valve,
   :data:`~ltd_brake_ros.inputs.commands.VALVE_POSITIONS`); a NaN, infinite or out-of-range
   value or an unknown position is rejected and logged;
-* records every message it publishes and receives with ``record:=true`` (rosbag2 MCAP folder);
+* records every message it publishes and receives with ``record:=true`` (rosbag2 MCAP folder;
+  ``/tf``, ``odom`` and the markers with ``record_frames:=true``);
 * serves ``~/reset`` (``std_srvs/Trigger``: the run-defining parameters set since take effect
   then, or the reset is refused with the reason), ``~/step`` (``std_srvs/Trigger``; a step
   advances ``steps_per_call`` chunks in lock-step mode or paused, with every command message
-  that reached the node before the request) and ``~/pause`` (``std_srvs/SetBool``).
+  that reached the node before the request) and ``~/pause`` (``std_srvs/SetBool``); and the
+  ``simulation_interfaces`` services (:mod:`.sim_control`) where that package is installed.
+  Pause, parameter and state requests are served during a step of any length (the node runs
+  on several threads; commands, steps and resets share one group, so a step still runs with
+  the commands that reached the node before it).
 
 Everything the node publishes or receives passes through :meth:`SimNode._emit` or
 :meth:`SimNode._input_handled` on the plant thread, where :meth:`SimNode.add_tap` observers see
@@ -52,12 +61,16 @@ from .program import install_if_program, run, unknown_parameters
 _SIGNALS = install_if_program("sim_node")
 
 import sys  # noqa: E402
+import threading  # noqa: E402
 import time  # noqa: E402
 from typing import Any, Callable  # noqa: E402
 
 import rclpy  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from rclpy.callback_groups import (MutuallyExclusiveCallbackGroup,  # noqa: E402
+                                   ReentrantCallbackGroup)
 from rclpy.node import Node  # noqa: E402
+from nav_msgs.msg import Odometry  # noqa: E402
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
@@ -72,24 +85,27 @@ from ..plant.markers import train_markers  # noqa: E402
 from ..plant.recorder import Recorder  # noqa: E402
 from ..plant.run import (RUN_INPUT_PARAMETERS, PlantRun, check_run_inputs,  # noqa: E402
                          reset_run)
+from .._version import __version__  # noqa: E402
 from ..plant.runner import PlantRunner  # noqa: E402
 from ..recording.bag import message_class, type_name  # noqa: E402
+from ..recording.frames import (FIXED_FRAME, MARKERS_TOPIC, ODOM_TOPIC, TF_TOPIC,  # noqa: E402
+                                FramesEncoder, frame_prefix)
 from ..recording.metadata import model_warnings, train_description  # noqa: E402
 from ..recording.plant_topics import (ARRAY_TOPICS, CLOCK_TOPIC, COMMAND_TOPICS,  # noqa: E402
                                       DESCRIPTION_TOPIC, STATE_TOPICS, StateEncoder)
 from ..recording.qos import qos_profiles_yaml  # noqa: E402
 from ..simulator import Simulator, Snapshot  # noqa: E402
+from . import sim_control  # noqa: E402
 from .messages import (CLOCK_QOS, COMMAND_QOS, DESCRIPTION_QOS, DIAGNOSTICS_QOS,  # noqa: E402
-                       MARKERS_QOS, STATE_QOS, clear_markers_msg, diagnostics_msg,
+                       MARKERS_QOS, STATE_QOS, TF_QOS, clear_markers_msg, diagnostics_msg,
                        marker_array_msg)
 from .params import (PARAMETERS, RESET_PARAMETERS, StartupError,  # noqa: E402
                      check_run_time_change, declare_parameters)
 
 NODE_NAME = "sim_node"
-#: The train as markers for RViz and Foxglove (visualization_msgs/MarkerArray), in MARKER_FRAME.
-MARKERS_TOPIC = "train/markers"
-#: Frame of the markers: x along the track [m], z up (RViz's default fixed frame).
-MARKER_FRAME = "map"
+#: Executor threads: one may wait for a long step while the others serve pause, parameter and
+#: state requests.
+EXECUTOR_THREADS = 3
 #: Wall time between two marker pictures of a train of up to 100 vehicles [s].
 MARKER_PERIOD_S = 0.1
 DIAGNOSTICS_TOPIC = "/diagnostics"
@@ -143,6 +159,10 @@ class SimNode(Node):
                                               self._created, clock_topic)
         if line:
             log.info(line)
+        # commands, steps and resets in one group (a step runs with the commands that came
+        # before it); pause, state and parameter requests apart, served during a step
+        self._plant_group = MutuallyExclusiveCallbackGroup()
+        self._control_group = ReentrantCallbackGroup()
         self._outputs = {DESCRIPTION_TOPIC: self.create_publisher(String, DESCRIPTION_TOPIC,
                                                                   DESCRIPTION_QOS)}
         self._outputs.update({topic: self.create_publisher(Float64MultiArray, topic, STATE_QOS)
@@ -150,11 +170,25 @@ class SimNode(Node):
         self._outputs.update({topic: self.create_publisher(JointState, topic, STATE_QOS)
                               for topic, _ in STATE_TOPICS})
         self._add_extra_publishers(self.plant_run)
-        # not recorded: a picture of the state, sent only while someone looks
-        self._markers = self.create_publisher(MarkerArray, MARKERS_TOPIC, MARKERS_QOS)
+        # where the train is: odometry, /tf, markers; recorded with record_frames only
+        self._prefix = frame_prefix(self.get_namespace())
+        self._vehicle_rate_hz = p["tf_vehicle_rate_hz"]
+        self._record_frames = p["record_frames"]
+        self._frames: FramesEncoder | None = None
+        self._outputs[ODOM_TOPIC] = self.create_publisher(Odometry, ODOM_TOPIC, STATE_QOS)
+        tf_type = _tf_message()
+        if tf_type is None:
+            log.warning("tf2_msgs is not installed: /tf is not published and the markers are "
+                        f"drawn in {FIXED_FRAME} (./dev.sh builds tf2_msgs; a ROS "
+                        "installation has it)")
+        else:
+            self._outputs[TF_TOPIC] = self.create_publisher(tf_type, TF_TOPIC, TF_QOS)
+        self._markers = self._outputs[MARKERS_TOPIC] = self.create_publisher(
+            MarkerArray, MARKERS_TOPIC, MARKERS_QOS)
+        self._unrecorded = set() if self._record_frames else {
+            self._outputs[t].topic_name for t in (ODOM_TOPIC, TF_TOPIC, MARKERS_TOPIC)
+            if t in self._outputs}
         self._next_markers_wall = 0.0
-        self._marker_prefix = self.get_namespace().strip("/")
-        self._marker_prefix += "/" if self._marker_prefix else ""
         if self.clock_mode == "publish":
             self._outputs[CLOCK_TOPIC] = self.create_publisher(Clock, CLOCK_TOPIC, CLOCK_QOS)
             watch = ClockWatch(clock_topic)
@@ -164,11 +198,13 @@ class SimNode(Node):
             self.create_subscription(
                 Clock, CLOCK_TOPIC,
                 lambda msg: self.runner.follow(msg.clock.sec * 1_000_000_000
-                                               + msg.clock.nanosec), CLOCK_QOS)
+                                               + msg.clock.nanosec), CLOCK_QOS,
+                callback_group=self._control_group)
         self._outputs[DIAGNOSTICS_TOPIC] = self.create_publisher(
             DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
         self._inputs = {name: self.create_subscription(msg_type, topic, self._receiver(name),
-                                                       COMMAND_QOS)
+                                                       COMMAND_QOS,
+                                                       callback_group=self._plant_group)
                         for topic, (msg_type, name) in INPUT_TOPICS.items()}
         self._encoder: StateEncoder | None = None
         self._encoded_sim: Simulator | None = None
@@ -183,10 +219,23 @@ class SimNode(Node):
             input_handled=self._input_handled, log=log, recorder=recorder,
             host_ok=self.context.ok,
             labels={name: sub.topic_name for name, sub in self._inputs.items()})
-        self.create_service(Trigger, "~/reset", self._reset_service)
+        self._reset_lock = threading.Lock()
+        self.create_service(Trigger, "~/reset", self._reset_service,
+                            callback_group=self._plant_group)
         self.create_service(SetBool, "~/pause",
-                            lambda q, r: self._reply(self.runner.pause(q.data), r))
-        self.create_service(Trigger, "~/step", self._step_service)
+                            lambda q, r: self._reply(self.runner.pause(q.data), r),
+                            callback_group=self._control_group)
+        self.create_service(Trigger, "~/step", self._step_service,
+                            callback_group=self._plant_group)
+        if sim_control.available():
+            sim_control.serve(self, lambda: self.runner, self._step, self._reset,
+                              f"ltd_brake_ros {__version__}: a train plant; a step is one chunk "
+                              "(parameter chunk_s); reset and stop start the run again with "
+                              "the run parameters set since", plant_group=self._plant_group,
+                              control_group=self._control_group)
+        else:
+            log.info("simulation_interfaces is not installed: serving ~/step, ~/reset and "
+                     "~/pause only")
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         log.info(self.plant_run.start_line(self.runner.settings, self.clock_mode))
@@ -201,7 +250,7 @@ class SimNode(Node):
     def _recorded_topics(self) -> list[tuple[str, str, str]]:
         endpoints = [*self._outputs.values(), *self._inputs.values()]
         return [(e.topic_name, type_name(e.msg_type), qos_profiles_yaml(e.qos_profile))
-                for e in endpoints]
+                for e in endpoints if e.topic_name not in self._unrecorded]
 
     def _add_extra_publishers(self, run: PlantRun) -> None:
         """Publishers of the brake model's further per-vehicle quantities of ``run``."""
@@ -243,20 +292,29 @@ class SimNode(Node):
         response.success, response.message = self.runner.result(job)
         return response
 
-    def _step_service(self, request, response):
-        # a command published before the request is in the step: on this one thread, what
-        # waits in the readers goes to the plant ahead of the step
+    def _step(self, chunks: int | None = None) -> tuple[bool, str]:
+        # a command published before the request is in the step: in the commands' group,
+        # what waits in the readers goes to the plant ahead of the step
         self._drain_inputs()
-        return self._reply(self.runner.step(), response)
+        return self.runner.result(self.runner.step(chunks))
 
-    def _reset_service(self, request, response):
+    def _step_service(self, request, response):
+        response.success, response.message = self._step()
+        return response
+
+    def _reset(self, hold: bool = False) -> tuple[bool, str]:
         def prepare(run: PlantRun) -> list:
             self._add_extra_publishers(run)
             return self._recorded_topics()
 
-        values = {name: self.get_parameter(name).value for name in RESET_PARAMETERS}
-        response.success, response.message, self.plant_run = reset_run(
-            self.runner, self.plant_run, values, prepare, self.get_logger())
+        with self._reset_lock:
+            values = {name: self.get_parameter(name).value for name in RESET_PARAMETERS}
+            ok, text, self.plant_run = reset_run(self.runner, self.plant_run, values, prepare,
+                                                 self.get_logger(), hold)
+        return ok, text
+
+    def _reset_service(self, request, response):
+        response.success, response.message = self._reset()
         return response
 
     def _check_parameters(self, params):
@@ -333,6 +391,8 @@ class SimNode(Node):
         ``self._outputs``), record it, show it to taps."""
         publisher, runner = self._outputs[topic], self.runner
         recorder = runner.recorder
+        if publisher.topic_name in self._unrecorded:
+            recorder = None
         if isinstance(msg, bytes):
             data = msg
             publisher.publish(data)
@@ -360,7 +420,7 @@ class SimNode(Node):
             tap(topic, msg, runner.stamp_ns, True)
 
     def _publish_state(self, snap: Snapshot) -> None:
-        sim = self.runner.sim
+        sim, stamp_ns = self.runner.sim, self.runner.stamp_ns
         if sim is not self._encoded_sim:  # the first state of a run: its train's layout
             self._encoded_sim = sim
             self._encoder = StateEncoder(sim.n, sim.model.train.centre_offset_m,
@@ -368,26 +428,49 @@ class SimNode(Node):
                                          clock=CLOCK_TOPIC in self._outputs,
                                          description=train_description(
                                              sim, self.plant_run.metadata()))
+            self._frames = FramesEncoder(self._prefix, sim.n, self._vehicle_rate_hz,
+                                         tf=TF_TOPIC in self._outputs)
             self._next_markers_wall = 0.0
             if self._markers.get_subscription_count():  # the last run's train goes
-                self._markers.publish(clear_markers_msg(MARKER_FRAME))
-        for topic, data in self._encoder.encode(snap, self.runner.stamp_ns):
+                self._markers.publish(clear_markers_msg(self._marker_frame()))
+        for topic, data in self._encoder.encode(snap, stamp_ns):
+            self._emit(topic, data)
+        for topic, data in self._frames.encode(snap.time_s, snap.position_m, snap.speed_m_s,
+                                               stamp_ns):
             self._emit(topic, data)
         now = time.monotonic()
-        if now >= self._next_markers_wall and self._markers.get_subscription_count():
-            # at most every MARKER_PERIOD_S of wall time, longer for long trains
-            self._next_markers_wall = now + MARKER_PERIOD_S * max(1.0, sim.n / 100.0)
+        live = now >= self._next_markers_wall and self._markers.get_subscription_count()
+        if live or (self._record_frames and self._frames.vehicles_sent
+                    and self.runner.recorder is not None and self.runner.recorder.active):
+            if live:  # at most every MARKER_PERIOD_S of wall time, longer for long trains
+                self._next_markers_wall = now + MARKER_PERIOD_S * max(1.0, sim.n / 100.0)
             c, lim = sim.consist, sim.limits
-            self._markers.publish(marker_array_msg(train_markers(
-                snap.position_m, sim.length_m, snap.block_force_N, sim.max_block_force_N,
+            x = snap.position_m
+            if TF_TOPIC in self._outputs:  # drawn in the head's frame, which /tf moves
+                x = x - x[0]
+            self._emit(MARKERS_TOPIC, marker_array_msg(train_markers(
+                x, sim.length_m, snap.block_force_N, sim.max_block_force_N,
                 snap.coupler_force_N, lim.draft_strength_N,
-                lim.buff_strength_N, [v.name for v in c.vehicles]), MARKER_FRAME,
-                self.runner.stamp_ns, self._marker_prefix))
+                lim.buff_strength_N, [v.name for v in c.vehicles]), self._marker_frame(),
+                stamp_ns, self._prefix))
+
+    def _marker_frame(self) -> str:
+        """The frame the markers are drawn in: the head's, or the fixed one without /tf."""
+        return self._frames.head_frame if TF_TOPIC in self._outputs else FIXED_FRAME
 
     def _publish_status(self, status: PlantStatus) -> None:
         self._emit(DIAGNOSTICS_TOPIC, diagnostics_msg(
             status, f"{self.get_fully_qualified_name()}: train plant",
             self.plant_run.spec.consist.name, self.runner.stamp_ns))
+
+
+def _tf_message():
+    """``tf2_msgs/msg/TFMessage``, or None where tf2_msgs is not installed."""
+    try:
+        from tf2_msgs.msg import TFMessage
+    except ImportError:
+        return None
+    return TFMessage
 
 
 def main(args: list[str] | None = None) -> int:
@@ -407,7 +490,7 @@ def main(args: list[str] | None = None) -> int:
     """
     return run(NODE_NAME, args, lambda _positional: SimNode(),
                usage="sim_node [--ros-args -p name:=value ... --params-file file.yaml]",
-               signals=_SIGNALS, errors=(StartupError,))
+               signals=_SIGNALS, errors=(StartupError,), threads=EXECUTOR_THREADS)
 
 
 if __name__ == "__main__":

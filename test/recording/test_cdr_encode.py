@@ -96,3 +96,63 @@ def test_a_truncated_joint_state_is_refused():
     for cut in (3, 11, 20, len(data) - 1):
         with pytest.raises(ValueError, match="runs past the end"):
             decode_joint_state(data[:cut])
+
+
+# --------------------------------------------------------------------------- frames
+
+
+@pytest.mark.parametrize("prefix", ["", "t/", "train12/"])
+@pytest.mark.parametrize("t_ns", [0, 1_020_000_000, 123_456_789_012])
+def test_tf_and_odometry_read_back_in_rclpy_as_the_messages(prefix, t_ns):
+    nav_msgs = pytest.importorskip("nav_msgs.msg")
+    tf2_msgs = pytest.importorskip("tf2_msgs.msg", reason="./dev.sh builds it")
+    from geometry_msgs.msg import TransformStamped
+
+    from ltd_brake_ros.recording.cdr_encode import OdometryEncoder, TFMessageEncoder
+
+    frames = [("map", f"{prefix}base_link")] + [(f"{prefix}base_link", f"{prefix}vehicle_{i}")
+                                                 for i in range(12)]
+    x = np.concatenate([[1234.5], -np.arange(12) * 16.03])
+    stamp = Time(sec=t_ns // 10**9, nanosec=t_ns % 10**9)
+    msg = tf2_msgs.TFMessage()
+    for (parent, child), xi in zip(frames, x):
+        t = TransformStamped(child_frame_id=child)
+        t.header.frame_id, t.header.stamp = parent, stamp
+        t.transform.translation.x = float(xi)
+        msg.transforms.append(t)
+    encoder = TFMessageEncoder(frames)
+    # (rclpy leaves padding bytes uninitialised: the messages are compared, not the bytes)
+    assert deserialize_message(encoder.encode(t_ns, x), tf2_msgs.TFMessage) == msg
+    data = encoder.encode(t_ns, x)  # reused
+    assert deserialize_message(data, tf2_msgs.TFMessage) == msg
+    assert len(data) == len(serialize_message(msg))
+    with pytest.raises(ValueError, match="expected 13 values"):
+        encoder.encode(t_ns, x[:5])
+    odom = nav_msgs.Odometry(child_frame_id=f"{prefix}base_link")
+    odom.header.frame_id, odom.header.stamp = "map", stamp
+    odom.pose.pose.position.x, odom.twist.twist.linear.x = 1234.5, -3.25
+    data = OdometryEncoder("map", f"{prefix}base_link").encode(t_ns, 1234.5, -3.25)
+    assert deserialize_message(data, nav_msgs.Odometry) == odom
+    assert len(data) == len(serialize_message(odom))
+
+
+def test_vehicle_frames_go_out_at_their_rate_of_simulated_time():
+    from ltd_brake_ros.recording.frames import ODOM_TOPIC, TF_TOPIC, FramesEncoder
+
+    x, v = np.array([100.0, 84.0, 70.0]), np.array([20.0, 20.0, 20.0])
+
+    def sent(encoder, chunks, chunk_s=0.02):
+        out = []
+        for k in range(chunks + 1):
+            topics = [t for t, _ in encoder.encode(k * chunk_s, x, v, 0)]
+            assert topics[:2] == [ODOM_TOPIC, TF_TOPIC]  # odometry and the head every chunk
+            if encoder.vehicles_sent:
+                assert topics == [ODOM_TOPIC, TF_TOPIC, TF_TOPIC]
+                out.append(k)
+        return out
+
+    assert sent(FramesEncoder("", 3, 10.0), 50) == list(range(0, 51, 5))  # every 0.1 s
+    assert sent(FramesEncoder("", 3, 1.0), 120, 0.03) == [0, 34, 67, 100]  # 0, 1.02, 2.01, 3 s
+    assert sent(FramesEncoder("", 3, 0.0), 50) == []
+    odom_only = FramesEncoder("", 3, 10.0, tf=False)
+    assert [t for t, _ in odom_only.encode(0.0, x, v, 0)] == [ODOM_TOPIC]

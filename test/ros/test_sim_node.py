@@ -406,6 +406,10 @@ def test_topics_qos_and_services_are_wired_as_documented(ros_context, clock):
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64, String
     from visualization_msgs.msg import MarkerArray
+    from nav_msgs.msg import Odometry
+    from simulation_interfaces.srv import (GetSimulationState, GetSimulatorFeatures,
+                                           ResetSimulation, SetSimulationState, StepSimulation)
+    from tf2_msgs.msg import TFMessage
 
     from ltd_brake_ros.ros.sim_node import SimNode
 
@@ -422,6 +426,9 @@ def test_topics_qos_and_services_are_wired_as_documented(ros_context, clock):
         outputs["/diagnostics"] = (DiagnosticArray, 10)
         outputs["/wired/train/description"] = (String, 1)  # latched: checked below
         outputs["/wired/train/markers"] = (MarkerArray, 1)
+        # where the train is: the head's odometry, and the frames on the shared /tf
+        outputs["/wired/odom"] = (Odometry, 10)
+        outputs["/tf"] = (TFMessage, 100)
         # the brake heat of every vehicle, as every brake model gives it
         outputs |= {f"/wired/vehicles/{t}": (Float64MultiArray, 10) for t in
                     ("block_temperature", "wheel_temperature")}
@@ -447,7 +454,12 @@ def test_topics_qos_and_services_are_wired_as_documented(ros_context, clock):
                 DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE), \
                 endpoint.topic_name
         services = {s.service_name: s.srv_type for s in node.services}
-        for name, srv_type in (("reset", Trigger), ("pause", SetBool), ("step", Trigger)):
+        for name, srv_type in (("reset", Trigger), ("pause", SetBool), ("step", Trigger),
+                               ("step_simulation", StepSimulation),
+                               ("reset_simulation", ResetSimulation),
+                               ("get_simulation_state", GetSimulationState),
+                               ("set_simulation_state", SetSimulationState),
+                               ("get_simulator_features", GetSimulatorFeatures)):
             assert services.get(f"/wired/sim_node/{name}") is srv_type, name
     finally:
         node.close()
@@ -503,7 +515,10 @@ def test_a_late_subscriber_gets_the_description_and_a_viewer_sees_the_train(ros_
     import json
 
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import JointState
     from std_msgs.msg import String
+    from tf2_msgs.msg import TFMessage
     from visualization_msgs.msg import Marker, MarkerArray
 
     from ltd_brake_ros.ros.sim_node import SimNode
@@ -532,7 +547,13 @@ def test_a_late_subscriber_gets_the_description_and_a_viewer_sees_the_train(ros_
             d["conventions"]["signs"]
         # markers only while someone looks: one box per vehicle and coupler, labels
         probe.subscribe("/seen/train/markers", MarkerArray)
-        probe.wait_matched(["/seen/train/markers"])
+        # where the train is: the head's odometry with every chunk, /tf (the head with every
+        # chunk, the vehicles at tf_vehicle_rate_hz, 10 Hz of simulated time by default)
+        probe.subscribe("/seen/odom", Odometry)
+        probe.subscribe("/tf", TFMessage)
+        probe.subscribe("/seen/vehicles/state", JointState)
+        probe.wait_matched(["/seen/train/markers", "/seen/odom", "/tf",
+                            "/seen/vehicles/state"])
         probe.publish("/seen/brake_command", Bool(data=True))
         for _ in range(250):  # 5 s of braking: the wagons' cylinders fill in about 5 s
             assert probe.call(Trigger, f"{name}/step", Trigger.Request()).success
@@ -548,6 +569,40 @@ def test_a_late_subscriber_gets_the_description_and_a_viewer_sees_the_train(ros_
             assert probe.call(Trigger, f"{name}/step", Trigger.Request()).success
             probe.spin_for(0.05)
         assert late(), "no marker picture of the braking train"
+        probe.spin_until(lambda: probe.received["/seen/vehicles/state"][-1].header.stamp
+                         == probe.received["/seen/odom"][-1].header.stamp, 10, "the last odom")
+
+        def ns(stamp) -> int:
+            return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+        states = {ns(m.header.stamp): m for m in probe.received["/seen/vehicles/state"]}
+        odoms = probe.received["/seen/odom"]
+        assert len(odoms) == len(states) >= 250
+        for odom in odoms:  # the head's centre and speed at the same instant
+            state = states[ns(odom.header.stamp)]
+            assert (odom.header.frame_id, odom.child_frame_id) == ("map", "seen/base_link")
+            assert odom.pose.pose.position.x == state.position[0]
+            assert odom.twist.twist.linear.x == state.velocity[0]
+        heads, vehicles = [], []
+        for msg in probe.received["/tf"]:
+            (heads if len(msg.transforms) == 1 else vehicles).append(msg)
+        assert [ns(m.transforms[0].header.stamp) for m in heads] == sorted(states)
+        for m in heads:
+            t, = m.transforms
+            assert (t.header.frame_id, t.child_frame_id) == ("map", "seen/base_link")
+            assert t.transform.translation.x == states[ns(t.header.stamp)].position[0]
+            assert t.transform.rotation.w == 1.0
+        # every 0.1 s of simulated time (5 chunks)
+        stamps = [ns(m.transforms[0].header.stamp) for m in vehicles]
+        first = stamps[0] // 100_000_000
+        assert stamps == [(first + k) * 100_000_000 for k in range(len(stamps))]
+        assert len(stamps) >= 50
+        last = vehicles[-1].transforms
+        assert [t.child_frame_id for t in last] == [f"seen/vehicle_{i}" for i in range(33)]
+        assert {t.header.frame_id for t in last} == {"seen/base_link"}
+        state = states[stamps[-1]]
+        assert [t.transform.translation.x for t in last] == \
+            pytest.approx([x - state.position[0] for x in state.position], abs=1e-9)
         markers = received[-1].markers
         by_ns = {}
         for m in markers:
@@ -555,7 +610,9 @@ def test_a_late_subscriber_gets_the_description_and_a_viewer_sees_the_train(ros_
         assert {k: len(v) for k, v in by_ns.items()} == {
             "seen/vehicles": 33, "seen/couplers": 32, "seen/labels": 33}
         head, second = by_ns["seen/vehicles"][:2]
-        assert head.type == Marker.CUBE and head.header.frame_id == "map"
+        # drawn in the head's frame, which /tf moves: a view that follows it follows the train
+        assert head.type == Marker.CUBE and head.header.frame_id == "seen/base_link"
+        assert head.pose.position.x == 0.0 and head.frame_locked
         # the head ahead of the wagon behind by half their lengths (19.42 / 2 + 12.64 / 2 m),
         # give or take the coupler's deflection (its travel is below 0.15 m)
         assert head.pose.position.x - second.pose.position.x == pytest.approx(16.03, abs=0.15)

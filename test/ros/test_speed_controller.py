@@ -160,3 +160,16 @@ def test_speed_controller_brings_the_train_to_40_kmh_and_holds_it(processes, tmp
     assert not brake_on[run["traction_ns"] / 1e9 >= t_reach].any()
     switches = effort_sign_changes(run["traction"], run["brake"])
     assert switches <= 2, f"{switches} switches between traction and braking"
+
+
+@pytest.mark.parametrize("value, reason", [
+    ("500.0", "parameter kp: 500.0 is out of range, expected 0 to 100"),
+    ("abc", "parameter kp: 'abc' is not a number with a decimal point (e.g. 2.0)")])
+def test_a_parameter_the_controller_cannot_use_is_one_line_and_exit_1(value, reason):
+    import subprocess
+
+    run = subprocess.run([sys.executable, str(EXAMPLE), "--ros-args", "-p", f"kp:={value}"],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 1
+    lines = [line for line in (run.stdout + run.stderr).splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].endswith(f"[speed_controller]: {reason}"), lines
