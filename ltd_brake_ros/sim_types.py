@@ -105,11 +105,15 @@ class Event:
     time_s : float
         Simulated time [s].
     kind : str
-        ``brake_applied``, ``brake_released``, ``stopped`` (``stop``, its number, with its
-        ``stopping_distance_m`` and ``stop_time_s``), ``settled`` (``settled_time_s``),
-        ``drive_off``, ``coupler_out_of_lut`` or ``limit_exceeded`` (a coupler or vehicle
-        first beyond a limit of :mod:`~ltd_brake_ros.verdicts`: ``criterion``, ``coupler`` or
-        ``vehicle``, the force, demand, temperature or speed, the limit, ``speed_kmh``).
+        ``brake_applied``, ``brake_released``; a stop's ``stop_started`` (``stop``, its
+        number, ``command``, ``command_speed_kmh``), ``stop_abandoned`` (released before
+        standstill), ``stopped`` (``stopping_distance_m``, ``stop_time_s`` and the peaks from
+        the command), ``settled`` (``settled_time_s``; ``stop`` 0: a train at rest from the
+        start), ``drive_off`` and ``stop_ended`` (``end``, ``verdicts`` and
+        ``verdict_<criterion>``); ``coupler_out_of_lut`` or ``limit_exceeded`` (a coupler or
+        vehicle first beyond a limit of :mod:`~ltd_brake_ros.verdicts`: ``criterion``,
+        ``coupler`` or ``vehicle``, the force, demand, temperature or speed, the limit,
+        ``speed_kmh``).
     detail : dict
         Kind-specific values (units in the keys).
     """
@@ -124,6 +128,12 @@ class Event:
         if self.kind == "stopped":
             return (f"t = {self.time_s:.2f} s: train stopped, stopping distance "
                     f"{d['stopping_distance_m']:.1f} m")
+        if self.kind == "stop_started":
+            return (f"t = {self.time_s:.2f} s: stop {d['stop']}: {d['command']} brake at "
+                    f"{d['command_speed_kmh']:.1f} km/h")
+        if self.kind == "stop_ended":
+            return (f"t = {self.time_s:.2f} s: stop {d['stop']} ended by {d['end']}, verdicts "
+                    f"{d['verdicts']}")
         if self.kind == "settled":
             return (f"t = {self.time_s:.2f} s: train settled, every vehicle at rest since "
                     f"t = {d['settled_time_s']:.2f} s")

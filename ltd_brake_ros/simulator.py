@@ -558,6 +558,23 @@ class Simulator:
                 merge_verdicts([self._window_verdicts(w) for w in windows])))
         return tuple(out)
 
+    def end_events(self) -> list[Event]:
+        """What a recording of the run ends with: a ``stop_ended`` event (``end`` ``end of
+        run``) with the verdicts so far of a stop still open, else nothing. The run is not
+        changed: it may go on.
+
+        Returns
+        -------
+        list of Event
+        """
+        found = self.stops
+        if not found or found[-1].end != "open":
+            return []
+        last = found[-1]
+        return [Event(self.time_s, "stop_ended", {
+            "stop": last.number, "end": "end of run", "verdicts": last.verdicts.status,
+            **{f"verdict_{c.name}": c.status for c in last.verdicts.criteria}})]
+
     @property
     def distance_travelled_m(self) -> float:
         """Head's displacement since time 0 [m]."""
@@ -856,7 +873,7 @@ class Simulator:
             if stop is not None:
                 stop.end_time_s, stop.end = st.time_s, "drive-off"
             events.append(Event(st.time_s, "drive_off"))
-            self._open_window(None)
+            self._open_window(None, events)
             st.phase = stops.PHASE_MOVING
         braking = commands.emergency or commands.brake_demand > 0.0
         if braking and st.phase in (stops.PHASE_MOVING, stops.PHASE_RUNAWAY):
@@ -869,7 +886,10 @@ class Simulator:
                                   "emergency" if commands.emergency else "service", st.time_s,
                                   float(k.v_m_s[0]), float(k.x_m[0]))
             st.stops.append(stop)
-            self._open_window(stop)
+            self._open_window(stop, events)
+            events.append(Event(st.time_s, "stop_started", {
+                "stop": stop.number, "command": stop.command,
+                "command_speed_kmh": stop.command_speed_m_s * KMH_PER_MS}))
             st.window.watch.start(stop.command_speed_m_s)
             st.phase = stops.PHASE_BRAKING
         if commands.emergency and not st.emergency:
@@ -886,6 +906,7 @@ class Simulator:
             level = (float(commands.brake_demand), SERVICE)
         if level[0] == 0.0 and st.phase == stops.PHASE_BRAKING:
             # released before standstill: no stop (a new command counts anew)
+            events.append(Event(st.time_s, "stop_abandoned", {"stop": st.stops[-1].number}))
             st.stops.pop()
             st.window.stop = None
             st.phase = stops.PHASE_MOVING
@@ -894,14 +915,20 @@ class Simulator:
             self._add_event(*level)
         st.traction_demand = float(commands.traction)
 
-    def _open_window(self, stop: stops.OpenStop | None) -> None:
+    def _open_window(self, stop: stops.OpenStop | None, events: list) -> None:
         """Close the window judged now and start another at this time (see
-        :mod:`~ltd_brake_ros.stops`); an empty one (no time, no standstill) is dropped."""
+        :mod:`~ltd_brake_ros.stops`); an empty one (no time, no standstill) is dropped. A
+        closed stop's window ends with a ``stop_ended`` event carrying its verdicts."""
         st = self._state
         w, k, t = st.window, st.kinematics, st.time_s
         if t > w.start_s or w.standstill is not None:
             w.extremes, w.end_s = stops.Extremes.of(k), t
             st.closed.append(w)
+            if w.stop is not None:
+                table = self._window_verdicts(w)
+                events.append(Event(t, "stop_ended", {
+                    "stop": w.stop.number, "end": w.stop.end, "verdicts": table.status,
+                    **{f"verdict_{c.name}": c.status for c in table.criteria}}))
         stops.reset_extremes(k, t)
         st.reported_out_of_range[:] = False
         st.reported_out_of_range_count = 0
@@ -1009,18 +1036,24 @@ class Simulator:
             stop.stop_time_s = t
             stop.stopping_distance_m = float(k.x_m[0]) - stop.command_head_m
             nc = self.n - 1
-            stop.peaks = CouplerPeaks.from_arrays(k.peak_draft_N[:nc], k.peak_draft_time_s[:nc],
-                                                  k.peak_buff_N[:nc], k.peak_buff_time_s[:nc])
+            stop.peaks = p = CouplerPeaks.from_arrays(
+                k.peak_draft_N[:nc], k.peak_draft_time_s[:nc], k.peak_buff_N[:nc],
+                k.peak_buff_time_s[:nc])
             events.append(Event(t, "stopped", {
                 "stop": stop.number, "stopping_distance_m": stop.stopping_distance_m,
-                "stop_time_s": t - stop.command_time_s}))
+                "stop_time_s": t - stop.command_time_s, "peak_draft_kN": p.draft_N / 1e3,
+                "peak_draft_coupler": p.draft_coupler, "peak_draft_time_s": p.draft_time_s,
+                "peak_buff_kN": p.buff_N / 1e3, "peak_buff_coupler": p.buff_coupler,
+                "peak_buff_time_s": p.buff_time_s}))
             st.window.standstill = stops.Standstill(t)
             stops.start_rest(k.step_control, t, k.v_m_s, self.standstill_m_s)
             st.phase = stops.PHASE_SETTLING
         elif code == kernel.SETTLED:
             rest = st.window.standstill
             rest.settled_s = float(k.step_control[kernel.REST_SINCE])
-            events.append(Event(t, "settled", {"settled_time_s": rest.settled_s}))
+            stop = st.window.stop
+            events.append(Event(t, "settled", {
+                "stop": 0 if stop is None else stop.number, "settled_time_s": rest.settled_s}))
             st.phase = stops.PHASE_AT_REST
         elif code == kernel.MOVED:  # from rest, without traction (traction ends the phase)
             st.phase = stops.PHASE_RUNAWAY

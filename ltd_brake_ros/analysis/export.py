@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..outputs import replaced_file
-from .samples import ARRAYS, BRAKE_COMMAND, plant_samples
+from .samples import ARRAYS, BRAKE_COMMAND, STOPS, plant_samples
 
 if TYPE_CHECKING:
     from .report import RunReport
@@ -20,7 +20,7 @@ FILES = {"vehicles/speed": "speed_m_s.csv", "vehicles/position": "position_m.csv
          "vehicles/brake_force": "brake_force_N.csv",
          "vehicles/traction_force": "traction_force_N.csv",
          "couplers/force": "coupler_force_N.csv", BRAKE_COMMAND: "brake_command.csv",
-         "coupler_peaks": "coupler_peaks.csv",
+         "coupler_peaks": "coupler_peaks.csv", STOPS: "stops.csv",
          "vehicles/brake_pipe_pressure": "brake_pipe_pressure_Pa.csv",
          "vehicles/brake_cylinder_pressure": "brake_cylinder_pressure_Pa.csv",
          "vehicles/block_temperature": "block_temperature_K.csv",
@@ -34,7 +34,9 @@ def write_csv(report: RunReport, outdir) -> list[Path]:
     ``traction_force_N.csv``, ``coupler_force_N.csv``; with a brake pipe also
     ``brake_pipe_pressure_Pa.csv`` and ``brake_cylinder_pressure_Pa.csv``, gauge: a ``time_s``
     column, then one column per vehicle ``vehicle_0`` (head) ... or coupler ``coupler_1``
-    (behind the head) ...), ``brake_command.csv`` and ``coupler_peaks.csv``. The recording is
+    (behind the head) ...), ``brake_command.csv``, ``coupler_peaks.csv`` and, for a recording
+    with the plant's stops, ``stops.csv`` (one row a stop, the columns of
+    :attr:`~.report.RunReport.stops`, a criterion's status as ``verdict_<name>``). The recording is
     streamed again, with the report's checks (:mod:`.samples`): every sample is written, or
     none of the files.
 
@@ -74,6 +76,8 @@ def write_csv(report: RunReport, outdir) -> list[Path]:
             if name == BRAKE_COMMAND:
                 handles[name].write(f"{log_ns * 1e-9:.9f},{int(value)}\n")
                 continue
+            if name == STOPS:  # the report's records of them, below
+                continue
             if name not in handles:
                 first = 1 if ARRAYS[name] == "coupler" else 0
                 create(name, ",".join(["time_s"] + [f"{ARRAYS[name]}_{i + first}"
@@ -90,4 +94,19 @@ def write_csv(report: RunReport, outdir) -> list[Path]:
                                  report.coupler_peak_draft_N, report.coupler_peak_draft_time_s,
                                  report.coupler_peak_buff_N, report.coupler_peak_buff_time_s))
         np.savetxt(handles["coupler_peaks"], table, delimiter=",", fmt=["%d"] + ["%.10g"] * 4)
+        if report.stops:
+            _write_stops(report.stops, create, handles)
     return [out / FILES[name] for name in handles]
+
+
+def _write_stops(stops: list, create, handles) -> None:
+    """``stops.csv``: one row a recorded stop (empty cells: not reached)."""
+    import csv
+
+    criteria = sorted({name for s in stops for name in s["criteria"]})
+    columns = [k for k in stops[0] if k != "criteria"]
+    create(STOPS, ",".join(columns + [f"verdict_{c}" for c in criteria]))
+    writer = csv.writer(handles[STOPS], lineterminator="\n")
+    for s in stops:
+        writer.writerow(["" if s[k] is None else s[k] for k in columns]
+                        + [s["criteria"].get(c, "") for c in criteria])

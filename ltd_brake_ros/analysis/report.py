@@ -68,7 +68,7 @@ from ..recording.reader import BagError, TruncatedBagWarning, bag_info, read_bag
 from ..simulator import CouplerPeaks
 from ..verdicts import (CRITERIA, SampledDemand, TrainLimits, Verdicts,
                         default_coupler_limits, judge, limits_from_metadata)
-from .samples import BRAKE_COMMAND, DESCRIPTION, plant_samples
+from .samples import BRAKE_COMMAND, DESCRIPTION, STOPS, plant_samples
 
 __all__ = ["RunReport", "analyse"]
 
@@ -240,6 +240,17 @@ class RunReport:
     temperatures : Peaks or None
         The hottest blocks and wheels of the run, which vehicle and when
         (:class:`~ltd_brake_ros.physics.brakes.thermal.Peaks`; None: not recorded).
+    stops : list of dict
+        Each stop the plant recorded on its stops topic (``train/stops``), in order, with the
+        keys of :class:`~ltd_brake_ros.stops.StopRecord`'s JSON: ``number``, ``command``
+        (``emergency`` or ``service``), ``command_time_s``, ``command_speed_kmh``,
+        ``stop_time_s``, ``stop_duration_s`` and ``stopping_distance_m`` (None: not at a
+        standstill), ``settled_time_s``, ``end_time_s``, ``end`` (``drive-off``, ``new stop``,
+        ``end of run``, or ``open``: the recording ended within the stop), the peaks from the
+        command to the standstill (``peak_draft_kN``, ``peak_draft_coupler``,
+        ``peak_buff_kN``, ``peak_buff_coupler`` and their times), ``verdict`` (the stop's
+        status; None while open) and ``criteria`` (criterion name to status). Empty for a
+        recording without the topic.
     stamped : bool
         Times come from the stamped states (a recording by another recorder, e.g.
         ``ros2 bag record``), not from the log times.
@@ -304,6 +315,7 @@ class RunReport:
     hottest_block_K: np.ndarray = field(default_factory=lambda: np.zeros(0))
     hottest_wheel_K: np.ndarray = field(default_factory=lambda: np.zeros(0))
     temperatures: Peaks | None = None
+    stops: list = field(default_factory=list)
 
     @property
     def warnings(self) -> list[str]:
@@ -343,6 +355,7 @@ class RunReport:
         out["plots"] = [str(p) for p in self.plots]
         out["warnings"] = self.warnings
         out["brake_heat"] = None if self.temperatures is None else self.temperatures.as_dict()
+        out["stops"] = [dict(s) for s in self.stops]
         out["time_base"] = "state header stamps" if self.stamped else "log times"
         out["notes"] = list(self.notes)
         return out
@@ -382,6 +395,7 @@ class RunReport:
             lines.append(f"Stopped: t = {self.stop_time_s:.2f} s; from the command: stopping "
                          f"distance {self.stopping_distance_m:.1f} m, stopping time "
                          f"{self.stopping_time_s:.2f} s")
+        lines += [_describe_stop(s) for s in self.stops]
         if self.n_couplers:
             lines.append(f"Peak draft: {round(self.peak_draft_kN, 1) + 0.0:.1f} kN at coupler "
                          f"{self.peak_draft_coupler} (t = {self.peak_draft_time_s:.2f} s)")
@@ -484,6 +498,75 @@ def _time_base(path, info, ns: str) -> tuple[dict, bool, list]:
     return metadata, stamped, notes
 
 
+#: Where a recording's at-rest checks are: in the plant's own verdicts of each stop.
+_BY_STOP = " (the plant judged it at each stop: see the stops above)"
+
+
+class _Stops:
+    """Each stop's record, rebuilt from the plant's stop events (see :attr:`RunReport.stops`)."""
+
+    _PEAKS = ("stopping_distance_m", "peak_draft_kN", "peak_draft_coupler", "peak_draft_time_s",
+              "peak_buff_kN", "peak_buff_coupler", "peak_buff_time_s")
+
+    def __init__(self):
+        self.records: list[dict] = []
+        self._open: dict[int, dict] = {}
+
+    def add(self, t: float, event: dict) -> None:
+        if _number(event.get("time_s")) is not None:
+            t = float(event["time_s"])  # the event's own simulated time, not its chunk's end
+        kind, number = event.get("event"), event.get("stop")
+        if kind == "stop_started":
+            rec = {"number": number, "command": event.get("command"), "command_time_s": t,
+                   "command_speed_kmh": event.get("command_speed_kmh"), "stop_time_s": None,
+                   "stop_duration_s": None, "stopping_distance_m": None,
+                   "settled_time_s": None, "end_time_s": None, "end": "open",
+                   **{k: None for k in self._PEAKS[1:]}, "verdict": None, "criteria": {}}
+            self.records.append(rec)
+            self._open[number] = rec
+            return
+        rec = self._open.get(number)
+        if rec is None:  # an event of a stop that started before the recording did
+            return
+        if kind == "stop_abandoned":
+            self.records.remove(rec)
+            del self._open[number]
+        elif kind == "stopped":
+            rec["stop_time_s"] = t
+            rec["stop_duration_s"] = event.get("stop_time_s")
+            rec.update({k: event.get(k) for k in self._PEAKS})
+        elif kind == "settled":
+            rec["settled_time_s"] = event.get("settled_time_s")
+        elif kind == "stop_ended":
+            rec["end"], rec["end_time_s"] = event.get("end"), t
+            rec["verdict"] = event.get("verdicts")
+            rec["criteria"] = {k[len("verdict_"):]: v for k, v in event.items()
+                               if k.startswith("verdict_")}
+            del self._open[number]
+
+
+def _describe_stop(s: dict) -> str:
+    """One line of a recorded stop."""
+    def num(key, fmt):
+        value = s.get(key)
+        return "?" if not isinstance(value, (int, float)) else format(value, fmt)
+
+    text = (f"Stop {s['number']} ({s['command']}, t = {num('command_time_s', '.2f')} s at "
+            f"{num('command_speed_kmh', '.1f')} km/h): ")
+    if s["stop_time_s"] is None:
+        text += "not at a standstill when it ended" if s["end"] != "open" else \
+            "moving when the recording ended"
+    else:
+        text += (f"{num('stopping_distance_m', '.1f')} m in {num('stop_duration_s', '.2f')} s, "
+                 f"peak draft {num('peak_draft_kN', '.1f')} kN, peak buff "
+                 f"{num('peak_buff_kN', '.1f')} kN")
+        if s["settled_time_s"] is not None:
+            text += f", settled t = {num('settled_time_s', '.2f')} s"
+    if s["end"] == "open":
+        return text + "; open at the end of the recording"
+    return text + f"; ended by {s['end']} (t = {num('end_time_s', '.2f')} s): {s['verdict']}"
+
+
 def _find_namespace(path, topics, namespace: str | None) -> str:
     if namespace is not None:
         return namespace.rstrip("/")
@@ -531,8 +614,11 @@ def analyse(path, namespace: str | None = None) -> RunReport:
     first_position = None
     pipe = _Pipe()
     heat_watch = _Heat()
+    stops = _Stops()
     for name, t, _log_ns, value in plant_samples(path, ns, stamped):
-        if name == "vehicles/speed":
+        if name == STOPS:
+            stops.add(t, value)
+        elif name == "vehicles/speed":
             n_vehicles = value.size
             speed.add(t, value[0], value[-1], float(value.max()))  # forward speed
             if watch is None:
@@ -626,6 +712,7 @@ def analyse(path, namespace: str | None = None) -> RunReport:
         rep.peak_buff_kN, rep.peak_buff_coupler = peaks.buff_N / 1e3, peaks.buff_coupler
         rep.peak_buff_time_s = peaks.buff_time_s
         rep.heat_t0_s, rep.heat_t1_s, rep.heat_force_N = heat.result()
+    rep.stops = stops.records
     pipe.result(rep, first_position,
                 command_t if command_t is not None else rep.start_time_s)
     heat_watch.result(rep, metadata)
@@ -635,6 +722,7 @@ def analyse(path, namespace: str | None = None) -> RunReport:
         def kmh(times):
             return np.interp(times, ts, head) * KMH_PER_MS
         rep.limits = watch.limits
+        by_stop = _BY_STOP if any(s["verdict"] for s in rep.stops) else ""
         if rep.command_speed_kmh is not None:  # the stop starts at the brake command
             watch.sampled.command(rep.command_speed_kmh / KMH_PER_MS)
         rep.verdicts = judge(
@@ -648,7 +736,9 @@ def analyse(path, namespace: str | None = None) -> RunReport:
             else None,
             travel_beyond_mm=watch.beyond_mm if watch._x0 is not None else None,
             travel_time_s=watch.beyond_t, travel_speed_kmh=watch.beyond_kmh,
-            holding_reason="not assessed from a recording: it holds no brake state at rest",
+            holding_reason="not assessed from a recording: it holds no brake state at rest"
+            + by_stop, runaway_reason="not assessed from a recording: it holds no "
+            "settling state" + by_stop,
             first_time_s=watch.first_time_s, wheel_temperature=heat_watch.peak.get("wheel"))
     return rep
 

@@ -8,6 +8,7 @@ recording, the topic, the time and the reason, never a sample silently left out.
 """
 from __future__ import annotations
 
+import json
 import warnings
 from typing import Iterator
 
@@ -17,7 +18,7 @@ from ..recording.cdr import (decode_bool, decode_float64_array, decode_joint_sta
                              decode_string)
 from ..recording.reader import BagError, TruncatedBagWarning, read_bag
 
-__all__ = ["ARRAYS", "BRAKE_COMMAND", "DESCRIPTION", "STATES", "plant_samples"]
+__all__ = ["ARRAYS", "BRAKE_COMMAND", "DESCRIPTION", "STATES", "STOPS", "plant_samples"]
 
 F64_ARRAY = "std_msgs/msg/Float64MultiArray"
 BOOL = "std_msgs/msg/Bool"
@@ -45,6 +46,9 @@ BRAKE_COMMAND = "brake_command"
 #: The driver's brake valve topic (std_msgs/String); its ``emergency`` position counts as
 #: a true :data:`BRAKE_COMMAND`.
 DRIVER_BRAKE_VALVE = "driver_brake_valve"
+#: The stops' events (``std_msgs/msg/String``, one JSON object each, see
+#: :data:`~ltd_brake_ros.recording.plant_topics.STOPS_TOPIC`).
+STOPS = "train/stops"
 
 
 class _Train:
@@ -94,7 +98,8 @@ def plant_samples(path, namespace: str, stamped: bool = False
     ------
     tuple
         ``(name, t_s, log_time_ns, value)``: ``name`` relative to the namespace (a key of
-        :data:`ARRAYS` with an ndarray, or :data:`BRAKE_COMMAND` with a bool).
+        :data:`ARRAYS` with an ndarray, :data:`BRAKE_COMMAND` with a bool, or :data:`STOPS`
+        with a stop's event as a dict).
 
     Raises
     ------
@@ -111,6 +116,7 @@ def plant_samples(path, namespace: str, stamped: bool = False
         states = {}
     command = f"{namespace}/{BRAKE_COMMAND}"
     valve = f"{namespace}/{DRIVER_BRAKE_VALVE}"
+    stops = f"{namespace}/{STOPS}"
     train = _Train(path)
     last_stamp_ns = 0
     stamps: dict[str, tuple[int, int]] = {}  # state topic -> (last stamp, its log time) [ns]
@@ -119,7 +125,7 @@ def plant_samples(path, namespace: str, stamped: bool = False
         for topic, msg_type, log_ns, data in read_bag(path):
             if topic == command:
                 expected = BOOL
-            elif topic == valve:
+            elif topic in (valve, stops):
                 expected = STRING
             elif topic in wanted:
                 expected = F64_ARRAY
@@ -137,7 +143,12 @@ def plant_samples(path, namespace: str, stamped: bool = False
                     stamp_ns, _names, *values = decode_joint_state(data)
                 else:
                     value = decode_bool(data) if topic == command else decode_string(data) \
-                        if topic == valve else decode_float64_array(data)
+                        if topic in (valve, stops) else decode_float64_array(data)
+                    if topic == stops:
+                        value = json.loads(value)
+                        if not isinstance(value, dict) or not isinstance(value.get("event"),
+                                                                         str):
+                            raise ValueError("not a JSON object with an event name")
             except ValueError as exc:
                 raise BagError(path, topic, f"message at t = {t:.3f} s does not decode: "
                                             f"{exc}") from None
@@ -156,6 +167,9 @@ def plant_samples(path, namespace: str, stamped: bool = False
                 continue
             if topic == command:
                 yield BRAKE_COMMAND, t, log_ns, value
+                continue
+            if topic == stops:
+                yield STOPS, t, log_ns, value
                 continue
             if topic == valve:
                 # the valve's emergency position is the same command as brake_command = true

@@ -234,6 +234,7 @@ def run(args: argparse.Namespace) -> int:
                                 group=sampler is None and not rec.recording,
                                 on_chunk=_on_chunk(rec, sampler, events), progress=progress,
                                 on_start=sampler and sampler.start)
+            rec.end(sim)
     res = summarize(sim, time.perf_counter() - start)
     _write_timeseries(args, sampler, sim, spec.speed_kmh)
     verdicts = sim.verdicts()
@@ -337,6 +338,7 @@ def _run_script(args: argparse.Namespace, spec) -> int:
                            chunk_s=_chunk(rec, sampler, RECORD_CHUNK_S),
                            on_chunk=_on_chunk(rec, sampler, events), progress=progress,
                            on_start=sampler and sampler.start)
+        rec.end(sim)
     wall = time.perf_counter() - start
     _write_timeseries(args, sampler, sim, spec.speed_kmh)
     snap = sim.snapshot()
@@ -547,6 +549,17 @@ class _Recording:
                 self._rec.write(qualify("/", topic), data, t_ns)
             self._next += 1
         for topic, data in self._encoder.encode(snap, t_ns):
+            self._rec.write(qualify("/", topic), data, t_ns)
+
+    def end(self, sim) -> None:
+        """Record how the run ends: the verdicts of a stop still open
+        (:meth:`~ltd_brake_ros.simulator.Simulator.end_events`)."""
+        if self._rec is None:
+            return
+        from ..recording.plant_topics import StateEncoder, qualify
+
+        t_ns = round(sim.time_s * 1e9)
+        for topic, data in StateEncoder.encode_events(sim.end_events()):
             self._rec.write(qualify("/", topic), data, t_ns)
 
     def __exit__(self, *exc) -> None:

@@ -148,6 +148,10 @@ class PlantRunner:
     recorder : Recorder, optional
         Its lifecycle follows the run (flushed when due, reopened on reset, closed on failure
         and close).
+    publish_end : callable, optional
+        ``publish_end(events)`` with the run's :meth:`~ltd_brake_ros.simulator.Simulator.
+        end_events` as a run ends (a reset, a failure, the plant's close), before its recording
+        is finished.
     labels : mapping, optional
         Input name to the name used in log lines (e.g. the topic).
     clock : Clock, optional
@@ -162,8 +166,11 @@ class PlantRunner:
                  publish_status: Callable[[PlantStatus], None], log,
                  input_handled: Callable[[str, Any, Any], None] | None = None,
                  recorder: Recorder | None = None, labels: Mapping[str, str] | None = None,
-                 clock: Clock = Clock(), host_ok: Callable[[], bool] = lambda: True):
+                 clock: Clock = Clock(), host_ok: Callable[[], bool] = lambda: True,
+                 publish_end: Callable[[list], None] | None = None):
         self.sim, self.settings, self.recorder = sim, settings, recorder
+        self._publish_end = publish_end
+        self._ended_run = -1  # the run (number of resets before it) whose end was published
         self._publish_state, self._publish_status = publish_state, publish_status
         self._input_handled = input_handled or (lambda name, value, message: None)
         self._log, self._clock, self._host_ok = log, clock, host_ok
@@ -240,6 +247,8 @@ class PlantRunner:
         self._wake.set()
         if self._thread.is_alive():
             self._thread.join(timeout=10.0)
+        if not self._thread.is_alive():  # the plant thread no longer touches the simulator
+            self._end_run()
         if self.recorder is not None:
             self.recorder.close()
 
@@ -617,6 +626,7 @@ class PlantRunner:
         self._report(self._clock.monotonic())
         # the run is over: finish its bag (ending with the ERROR above) so that it is complete
         # and readable now, not only once the host exits; a reset starts the next one
+        self._end_run()
         if self.recorder is not None:
             self.recorder.close()
 
@@ -651,8 +661,21 @@ class PlantRunner:
             self._log.warning(f"{self._labels.get(name, name)}: {text} "
                               f"({self.rejected[name]} rejected so far)")
 
+    def _end_run(self) -> None:
+        """Publish (and record) how the run ends, once; never raises."""
+        if self._publish_end is None or self._ended_run == self.resets:
+            return
+        self._ended_run = self.resets
+        try:
+            events = self.sim.end_events()
+            if events:
+                self._publish_end(events)
+        except Exception as exc:  # noqa: BLE001 - the run's end must not stop a reset or close
+            self._log.warning(f"the run's last stop was not published: {exc}")
+
     def _reset(self, replacement=None, recording_of_run=None, hold=False) -> tuple[bool, str]:
         rec, recording = self.recorder, ""
+        self._end_run()
         if rec is not None:
             # one run per bag (the report assumes it): the next run's bag is opened first, so
             # a reset that could not be recorded does not happen (never a success while the

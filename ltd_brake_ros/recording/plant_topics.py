@@ -25,7 +25,8 @@ from .cdr_encode import (Float64ArrayEncoder, JointStateEncoder, encode_bool, en
 from .qos import qos_profiles_yaml
 
 __all__ = ["ARRAY_TOPICS", "STATE_TOPICS", "CLOCK_TOPIC", "COMMAND_TOPICS", "JOINT_STATE",
-           "command_messages", "extra_topic", "joint_names", "plant_topics", "qualify", "StateEncoder"]
+           "STOPS_TOPIC", "STOP_EVENTS", "command_messages", "extra_topic", "joint_names",
+           "plant_topics", "qualify", "stop_event_json", "StateEncoder"]
 
 #: Published arrays (``std_msgs/msg/Float64MultiArray``): topic, Snapshot attribute,
 #: ``layout.dim[0].label``.
@@ -47,6 +48,14 @@ CLOCK_TOPIC = "/clock"
 #: The train description (JSON, :func:`~.metadata.train_description`), latched: published once
 #: per run with transient-local durability, so a tool joining late receives it.
 DESCRIPTION_TOPIC = "train/description"
+#: The stops of a run as they happen (``std_msgs/msg/String``, one JSON object a message:
+#: ``event`` -- ``stop_started``, ``stop_abandoned``, ``stopped``, ``settled``, ``drive_off``,
+#: ``stop_ended`` --, ``time_s`` and the event's values, :class:`~ltd_brake_ros.simulator.Event`),
+#: published and recorded when they happen: a report rebuilds each stop's record from them.
+STOPS_TOPIC = "train/stops"
+#: The events :data:`STOPS_TOPIC` carries.
+STOP_EVENTS = ("stop_started", "stop_abandoned", "stopped", "settled", "drive_off",
+               "stop_ended")
 DESCRIPTION_TYPE = "std_msgs/msg/String"
 #: Command topics: message type and the plant input each one sets. ``driver_brake_valve``
 #: carries a position name of the driver's brake valve
@@ -117,6 +126,30 @@ def command_messages(change: Mapping[str, Any]) -> list[tuple[str, bytes]]:
     return out
 
 
+def stop_event_json(event) -> str:
+    """A stop's event as the text of a :data:`STOPS_TOPIC` message: one JSON object, strict
+    JSON (a value not a finite number, e.g. no peak yet, is ``null``)."""
+    import json
+    import math
+
+    def plain(value):
+        if isinstance(value, (bool, str)) or value is None:
+            return value
+        if isinstance(value, dict):
+            return {str(k): plain(v) for k, v in value.items()}
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            return str(value)
+        if not math.isfinite(number):
+            return None
+        return int(number) if float(number).is_integer() and not isinstance(value, float) \
+            else number
+
+    return json.dumps(plain({"event": event.kind, "time_s": event.time_s, **event.detail}),
+                      allow_nan=False)
+
+
 def joint_names(kind: str, n_vehicles: int) -> list[str]:
     """Joint names of a :data:`STATE_TOPICS` kind: ``vehicle_0 ...`` or ``coupler_1 ...``."""
     if kind == "vehicle":
@@ -141,14 +174,16 @@ def plant_topics(namespace: str = "/", extras=(), clock: bool = True
     -------
     list of (str, str, str)
         Fully qualified name, message type, ``offered_qos_profiles`` text: the description,
-        the arrays, the stamped state, the extras, ``/clock``, then the command topics.
+        the stops, the arrays, the stamped state, the extras, ``/clock``, then the command
+        topics.
     """
     def qos(depth: int) -> str:
         return qos_profiles_yaml(depth=depth, liveliness="system_default")
 
     latched = qos_profiles_yaml(depth=1, durability="transient_local",
                                 liveliness="system_default")
-    return ([(qualify(namespace, DESCRIPTION_TOPIC), DESCRIPTION_TYPE, latched)]
+    return ([(qualify(namespace, DESCRIPTION_TOPIC), DESCRIPTION_TYPE, latched),
+             (qualify(namespace, STOPS_TOPIC), DESCRIPTION_TYPE, qos(100))]
             + [(qualify(namespace, t), _F64_ARRAY, qos(10)) for t, _, _ in ARRAY_TOPICS]
             + [(qualify(namespace, t), JOINT_STATE, qos(10)) for t, _ in STATE_TOPICS]
             + [(qualify(namespace, extra_topic(k)), _F64_ARRAY, qos(10)) for k in extras]
@@ -196,6 +231,12 @@ class StateEncoder:
         self._zeros = np.zeros(nc)
         self._clock = clock
 
+    @staticmethod
+    def encode_events(events) -> list[tuple[str, bytes]]:
+        """The :data:`STOPS_TOPIC` messages of ``events`` (the others are not published)."""
+        return [(STOPS_TOPIC, encode_string(stop_event_json(e))) for e in events
+                if e.kind in STOP_EVENTS]
+
     def encode(self, snap, stamp_ns: int) -> list[tuple[str, bytes]]:
         """``(topic, payload)`` of every state message of ``snap`` (node-relative topics,
         ``/clock`` absolute), stamped ``stamp_ns`` [ns]."""
@@ -203,6 +244,7 @@ class StateEncoder:
         if self._description is not None:  # once, before the first state
             out.append((DESCRIPTION_TOPIC, encode_string(self._description)))
             self._description = None
+        out += self.encode_events(snap.events)
         out += [(t, enc.encode(getattr(snap, attribute))) for t, attribute, enc in self._arrays]
         x, v = snap.position_m, snap.speed_m_s
         out.append((self._vehicles_topic,

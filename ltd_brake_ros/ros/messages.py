@@ -31,6 +31,11 @@ DIAGNOSTICS_QOS = STATE_QOS
 DESCRIPTION_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                              reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: The stops' events: rare and each one kept (a reader joining late misses them; the recording
+#: keeps them all).
+STOPS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                       reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.VOLATILE)
 #: /tf: as tf2_ros broadcasts it (reliable, volatile, a deep queue for bursts of transforms).
 TF_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                     reliability=ReliabilityPolicy.RELIABLE,

@@ -92,13 +92,14 @@ from ..recording.frames import (FIXED_FRAME, MARKERS_TOPIC, ODOM_TOPIC, TF_TOPIC
                                 FramesEncoder, frame_prefix)
 from ..recording.metadata import model_warnings, train_description  # noqa: E402
 from ..recording.plant_topics import (ARRAY_TOPICS, CLOCK_TOPIC, COMMAND_TOPICS,  # noqa: E402
-                                      DESCRIPTION_TOPIC, STATE_TOPICS, StateEncoder)
+                                      DESCRIPTION_TOPIC, STATE_TOPICS, STOPS_TOPIC,
+                                      StateEncoder)
 from ..recording.qos import qos_profiles_yaml  # noqa: E402
 from ..simulator import Simulator, Snapshot  # noqa: E402
 from . import sim_control  # noqa: E402
 from .messages import (CLOCK_QOS, COMMAND_QOS, DESCRIPTION_QOS, DIAGNOSTICS_QOS,  # noqa: E402
-                       MARKERS_QOS, STATE_QOS, TF_QOS, clear_markers_msg, diagnostics_msg,
-                       marker_array_msg)
+                       MARKERS_QOS, STATE_QOS, STOPS_QOS, TF_QOS, clear_markers_msg,
+                       diagnostics_msg, marker_array_msg)
 from .params import (PARAMETERS, RESET_PARAMETERS, StartupError,  # noqa: E402
                      check_run_time_change, declare_parameters)
 
@@ -164,7 +165,8 @@ class SimNode(Node):
         self._plant_group = MutuallyExclusiveCallbackGroup()
         self._control_group = ReentrantCallbackGroup()
         self._outputs = {DESCRIPTION_TOPIC: self.create_publisher(String, DESCRIPTION_TOPIC,
-                                                                  DESCRIPTION_QOS)}
+                                                                  DESCRIPTION_QOS),
+                         STOPS_TOPIC: self.create_publisher(String, STOPS_TOPIC, STOPS_QOS)}
         self._outputs.update({topic: self.create_publisher(Float64MultiArray, topic, STATE_QOS)
                               for topic, _, _ in ARRAY_TOPICS})
         self._outputs.update({topic: self.create_publisher(JointState, topic, STATE_QOS)
@@ -217,7 +219,7 @@ class SimNode(Node):
             self.plant_run.sim, self.plant_run.settings(self.clock_mode == "follow"),
             publish_state=self._publish_state, publish_status=self._publish_status,
             input_handled=self._input_handled, log=log, recorder=recorder,
-            host_ok=self.context.ok,
+            host_ok=self.context.ok, publish_end=self._publish_end,
             labels={name: sub.topic_name for name, sub in self._inputs.items()})
         self._reset_lock = threading.Lock()
         self.create_service(Trigger, "~/reset", self._reset_service,
@@ -409,6 +411,16 @@ class SimNode(Node):
             recorder.write(publisher.topic_name, data, runner.stamp_ns)
         for tap in self._taps:
             tap(publisher.topic_name, msg, runner.stamp_ns, False)
+
+    def _publish_end(self, events) -> None:
+        """The run's end on the stops topic: recorded first (the host may be shutting down and
+        refuse to publish), then published."""
+        publisher, runner = self._outputs[STOPS_TOPIC], self.runner
+        for _topic, data in StateEncoder.encode_events(events):
+            if runner.recorder is not None and runner.recorder.active:
+                runner.recorder.write(publisher.topic_name, data, runner.stamp_ns)
+            if self.context.ok():
+                publisher.publish(data)
 
     def _input_handled(self, name: str, value: Any, msg: Any) -> None:
         """Record and show a received (or the plant's own) input, on the plant thread."""

@@ -454,7 +454,8 @@ def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_k
           travel_beyond_mm=None, travel_time_s=None, travel_speed_kmh=None,
           holding=None, holding_reason: str = "not assessed: the train has not settled at rest",
           first_time_s: dict | None = None, wheel_temperature=None, runaway=None,
-          rail_demand=None) -> Verdicts:
+          rail_demand=None,
+          runaway_reason: str = "not assessed: the train has not settled at rest") -> Verdicts:
     """The verdicts table from a run's per-coupler peaks and per-vehicle adhesion records.
 
     Parameters
@@ -490,7 +491,9 @@ def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_k
     runaway : tuple of array_like, optional
         (largest speed after the train had settled, without traction [km/h], when it first
         moved [s], -1: never) of each vehicle (omitted: not assessed, the train never
-        settled).
+        settled, ``runaway_reason``).
+    runaway_reason : str, optional
+        Why the runaway check is not assessed when ``runaway`` is omitted.
 
     Returns
     -------
@@ -533,8 +536,7 @@ def judge(limits: TrainLimits, *, peak_draft_N, peak_draft_time_s, draft_speed_k
                                origin.get("standstill_holding", "")))
     if runaway is None or not limits.adhesion_limit.size:
         rows.append(Criterion("runaway", False, math.inf, math.inf,
-                              "not assessed: the train has not settled at rest"
-                              if limits.adhesion_limit.size else
+                              runaway_reason if limits.adhesion_limit.size else
                               origin.get("runaway", "not assessed"), 0.0, 0, 0.0))
     else:
         speed, t = (np.asarray(a, float) for a in runaway)

@@ -76,9 +76,13 @@ def test_the_speed_at_the_brake_command_and_the_distance_from_it(run):
 def test_report_verdicts_agree_with_the_simulator(run):
     sim, rep = run
     ours, theirs = rep.verdicts, sim.verdicts()
-    # a recording holds no brake state at rest: holding is the simulator's alone; this one
-    # has no temperature topics (a recording with them: test_report_heat)
-    assert [c.status for c in ours.criteria][:-2] == [c.status for c in theirs.criteria][:-2]
+    # a recording holds no brake state at rest: holding and runaway are the simulator's alone
+    # (each recorded stop carries them); this one has no temperature topics (a recording with
+    # them: test_report_heat)
+    own = ("standstill_holding", "runaway", "wheel_temperature")
+    assert [c.name for c in ours.criteria] == [c.name for c in theirs.criteria]
+    assert [c.status for c in ours.criteria if c.name not in own] \
+        == [c.status for c in theirs.criteria if c.name not in own]
     assert ours["standstill_holding"].status == "not assessed"
     assert "recording" in ours["standstill_holding"].origin
     assert ours["wheel_temperature"].status == "not assessed"
@@ -96,9 +100,10 @@ def test_report_verdicts_agree_with_the_simulator(run):
     assert a.status == b.status == "PASS"
     assert a.worst_value == pytest.approx(b.worst_value, rel=0.01)
     assert a.worst_number == b.worst_number
-    # the instantaneous demand: the same samples as the simulator's chunk ends
-    for name in ("adhesion_at_speed", "adhesion_low_speed"):
-        assert ours[name].worst_value == pytest.approx(theirs[name].worst_value, rel=0.01)
+    # the demand against the rail: the same samples as the simulator's chunk ends (which of
+    # the 16 identical wagons is worst is a tie, not compared)
+    assert ours["adhesion_demand"].worst_value == pytest.approx(
+        theirs["adhesion_demand"].worst_value, rel=0.01)
     assert ours["coupler_travel"].status == "PASS" and not ours.non_physical
     text = rep.describe()
     assert "Verdicts: FAIL" in text and "Coupler draft strength" in text
