@@ -673,6 +673,13 @@ def _speed(speed_kmh, *, at_rest: bool) -> float:
     return v
 
 
+def _rail_condition(spec, name: str):
+    """An adhesion condition of the API (None: not given)."""
+    from .inputs.adhesion import adhesion_condition
+
+    return adhesion_condition(spec, name)
+
+
 def _attrs(sim: Simulator, speed_kmh: float) -> dict:
     return {"consist": sim.consist.name, "initial_speed_kmh": float(speed_kmh),
             "step_s": sim.step_s, "tolerance_m_s": float(sim.tolerance_m_s)}
@@ -682,7 +689,8 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
                    coupler: CouplerLUT | None = None, track: Track | None = None,
                    sample_s: float = 0.1, step_s: float = 0.01,
                    tolerance_m_s: float | None = DEFAULT_TOLERANCE_M_S,
-                   max_time_s: float = 600.0, band=False) -> RunResult:
+                   max_time_s: float = 600.0, band=False, adhesion=None,
+                   rail=None) -> RunResult:
     """Apply the emergency brake at t = 0 and run to the stop, the train settled.
 
     Parameters
@@ -706,6 +714,12 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
     band : bool, str, path-like or ModelFormBand, optional
         Also run the stop under every member of a model-form band (True: the shipped
         ``bands/model_form.yaml``; a file; or a loaded band): :attr:`RunResult.band`.
+    adhesion : str, float, path-like or AdhesionCondition, optional
+        Model wheel slide against this rail: ``dry``, ``wet``, ``low``, a constant mu, or an
+        adhesion YAML file (default: off, as in the paper's method; see the wheel-slide page).
+    rail : str, float, path-like or AdhesionCondition, optional
+        The rail the adhesion-demand check judges against (default: ``adhesion``'s, else
+        ``dry``); the run is not changed.
 
     Returns
     -------
@@ -714,7 +728,8 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
     Raises
     ------
     InputError
-        A consist that cannot be loaded, a speed that is not a finite number above 0.
+        A consist that cannot be loaded, a speed that is not a finite number above 0, an
+        unknown rail condition, a band asked for with ``adhesion`` or ``rail``.
     SimulationError
         A step failed, or the train did not stop within ``max_time_s``.
 
@@ -728,10 +743,14 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
     consist, speed_kmh = _train(consist), _speed(speed_kmh, at_rest=False)
     _announce_compile(consist=consist, speed_kmh=speed_kmh, params=params, lut=coupler,
                       track=track, step_s=step_s, tolerance_m_s=tolerance_m_s)
+    adhesion, rail = _rail_condition(adhesion, "adhesion"), _rail_condition(rail, "rail")
     sampler = _Sampler()
     start = time.perf_counter()
     result = None
     if band is not False and band is not None:
+        if adhesion is not None or rail is not None:
+            raise InputError("band", "", "a model-form band runs the paper's method on a "
+                             "nominal rail: leave out adhesion and rail")
         from .inputs.band import ModelFormBand, load_band
         from .studies.band import run_band
 
@@ -742,8 +761,9 @@ def emergency_stop(consist: Consist, speed_kmh: float, *, params: BrakeParams | 
                                max_time_s=max_time_s, on_nominal=sampler,
                                on_nominal_start=sampler.start)
     else:
-        sim = emergency_run(consist, speed_kmh, params, coupler, track, step_s=step_s,
-                            tolerance_m_s=tolerance_m_s, chunk_s=sample_s,
+        sim = emergency_run(consist, speed_kmh, params, coupler, track, adhesion=adhesion,
+                            rail=rail, step_s=step_s, tolerance_m_s=tolerance_m_s,
+                            chunk_s=sample_s,
                             max_time_s=max_time_s, on_chunk=sampler, on_start=sampler.start)
     summary = summarize(sim, time.perf_counter() - start)
     return RunResult(summary, sim.verdicts(), sampler.series(sim, _attrs(sim, speed_kmh)), sim,
@@ -754,7 +774,7 @@ def run_commands(consist: Consist, speed_kmh: float, commands, *,
                  params: BrakeParams | None = None, coupler: CouplerLUT | None = None,
                  track: Track | None = None, sample_s: float = 0.1, step_s: float = 0.01,
                  tolerance_m_s: float | None = DEFAULT_TOLERANCE_M_S,
-                 max_time_s: float = 3600.0) -> RunResult:
+                 max_time_s: float = 3600.0, adhesion=None, rail=None) -> RunResult:
     """Run a train under a timed command script (service brake, traction, emergency).
 
     Parameters
@@ -769,6 +789,8 @@ def run_commands(consist: Consist, speed_kmh: float, commands, *,
         As for :func:`emergency_stop`.
     max_time_s : float, optional
         Upper bound when the script has no duration and the train does not stop [s].
+    adhesion, rail : optional
+        As for :func:`emergency_stop`.
 
     Returns
     -------
@@ -793,7 +815,9 @@ def run_commands(consist: Consist, speed_kmh: float, commands, *,
                       track=track, step_s=step_s, tolerance_m_s=tolerance_m_s)
     sampler = _Sampler()
     start = time.perf_counter()
-    sim = scripted_run(consist, speed_kmh, script, params, coupler, track, step_s=step_s,
+    adhesion, rail = _rail_condition(adhesion, "adhesion"), _rail_condition(rail, "rail")
+    sim = scripted_run(consist, speed_kmh, script, params, coupler, track, adhesion=adhesion,
+                       rail=rail, step_s=step_s,
                        tolerance_m_s=tolerance_m_s, chunk_s=sample_s, max_time_s=max_time_s,
                        on_chunk=sampler, on_start=sampler.start)
     wall = time.perf_counter() - start

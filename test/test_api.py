@@ -386,3 +386,20 @@ def test_a_brake_pipe_run_carries_its_pressures_in_its_time_series(tmp_path):
     assert main(["simulate", "--scenario", "1", "--params", "brake_params/uic_brake_pipe.yaml",
                  "--timeseries", str(out)]) == 0
     assert ",brake_cylinder_pressure_Pa,Pa," in out.read_text()
+
+
+def test_the_rail_and_wheel_slide_are_arguments_as_on_the_command_line():
+    dry = api.emergency_stop("scenario_7", 100.0)
+    wet = api.emergency_stop("scenario_7", 100.0, rail="wet")
+    # the same run (the rail is judged against, not modelled) ...
+    assert wet.summary.stopping_distance_m == dry.summary.stopping_distance_m
+    # ... judged against a rail with 0.6 x the dry rail's adhesion (Koffman's wet/dry ratio)
+    a, b = dry.verdicts["adhesion_demand"], wet.verdicts["adhesion_demand"]
+    assert b.limit_max == pytest.approx(0.6 * a.limit_max, rel=1e-3)
+    # wheel slide on a low rail lengthens the stop
+    low = api.emergency_stop("scenario_7", 100.0, adhesion="low")
+    assert low.summary.stopping_distance_m > dry.summary.stopping_distance_m
+    with pytest.raises(InputError, match="^rail: unknown adhesion condition 'icy'"):
+        api.emergency_stop("scenario_7", 100.0, rail="icy")
+    with pytest.raises(InputError, match="^band: .*leave out adhesion and rail"):
+        api.emergency_stop("scenario_7", 100.0, rail="dry", band=True)

@@ -101,18 +101,9 @@ def _adhesion(args: argparse.Namespace):
 def _condition(spec, option: str):
     """An adhesion condition of the command line (None: not given), a file read and checked
     here."""
-    if spec is None:
-        return None
-    from ..inputs import InputError
-    from ..inputs.adhesion import load_adhesion
-    from ..physics.brakes import adhesion
+    from ..inputs.adhesion import adhesion_condition
 
-    try:
-        return adhesion.condition(spec)
-    except ValueError as exc:
-        if spec.strip().lower().endswith((".yaml", ".yml")):
-            return load_adhesion(spec)
-        raise InputError("command line", option, str(exc)) from None
+    return adhesion_condition(spec, "command line", option)
 
 
 def _start_up(args, spec, params, lut, adhesion) -> float:

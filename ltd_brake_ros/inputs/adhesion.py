@@ -6,9 +6,42 @@ import os
 import numpy as np
 
 from ..physics.brakes.adhesion import SLIDING_RATIO, AdhesionCondition
-from .schema import Fields, load_yaml, resolve_config_path
+from .schema import Fields, InputError, load_yaml, resolve_config_path
 
-__all__ = ["load_adhesion"]
+__all__ = ["adhesion_condition", "load_adhesion"]
+
+
+def adhesion_condition(spec, where: str, field: str = "") -> AdhesionCondition | None:
+    """A rail's adhesion condition as a user gives it (None: not given).
+
+    Parameters
+    ----------
+    spec : None, str, float, path-like or AdhesionCondition
+        ``dry``, ``wet``, ``low``, ``off``, a constant mu in (0, 1], an adhesion YAML file
+        (:func:`load_adhesion`) or a condition.
+    where, field : str
+        Named in the error (e.g. ``command line``, ``--rail``).
+
+    Returns
+    -------
+    AdhesionCondition or None
+
+    Raises
+    ------
+    InputError
+        An unknown name, a number outside (0, 1], a file that does not load.
+    """
+    from ..physics.brakes import adhesion
+
+    if spec is None:
+        return None
+    if isinstance(spec, os.PathLike) or (isinstance(spec, str) and spec.strip().lower()
+                                         .endswith((".yaml", ".yml"))):
+        return load_adhesion(spec)
+    try:
+        return adhesion.condition(spec)
+    except (ValueError, TypeError) as exc:
+        raise InputError(where, field, str(exc)) from None
 
 
 def load_adhesion(path: str | os.PathLike) -> AdhesionCondition:
