@@ -260,7 +260,7 @@ def begin(simulator_kwargs: dict, say) -> str | None:
         One line with the compile's estimated duration; None when the kernels are cached (the
         run loads them).
     """
-    from .simulator import compile_notice
+    from .compiled import compile_notice
 
     notice = compile_notice(*_kind_of(simulator_kwargs))
     if notice is None or start(simulator_kwargs, say) is None:
@@ -315,7 +315,7 @@ def measured(simulator_kwargs: dict, say, announce: bool = True):
     announce : bool, optional
         Say the announcement here (False: the caller did).
     """
-    from .simulator import compile_kind, compile_notice
+    from .compiled import compile_kind, compile_notice
 
     if announce:
         notice = compile_notice(*_kind_of(simulator_kwargs))
@@ -342,7 +342,8 @@ def compile_here(runs, say) -> None:
     say : callable
         Called with each line.
     """
-    from .simulator import Simulator, compile_kind
+    from .compiled import compile_kind
+    from .simulator import Simulator
 
     seen = set()
     for kwargs in runs:
@@ -369,7 +370,8 @@ def _compile(fd: int, inputs: str) -> int:
     os.set_inheritable(fd, False)
     if hasattr(signal, "alarm"):  # a compile that hangs must not hold the lock for ever
         signal.alarm(COMPILE_LIMIT_S)
-    from .simulator import Simulator, compile_kind
+    from .compiled import compile_kind
+    from .simulator import Simulator
 
     started = time.monotonic()
     Simulator(**kwargs).warm_up()

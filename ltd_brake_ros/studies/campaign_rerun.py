@@ -26,6 +26,7 @@ from ..recording.metadata import run_metadata, train_description
 from ..recording.plant_topics import COMMAND_TOPICS, StateEncoder, plant_topics, qualify
 from ..simulator import Commands, SimulationError, Simulator
 from .campaign import CHUNK_S, SCRIPT_CHUNK_S, draw, models
+from .runs import stop_run_over
 
 __all__ = ["RECORD_CHUNK_S", "campaign_of_results", "rerun", "run_folder_name"]
 
@@ -195,8 +196,10 @@ def rerun(c: Campaign, run_id: int, manoeuvre: str, out, *, namespace: str = "/"
         raise InputError("ROS message packages", "", f"{exc}: a recording needs std_msgs and "
                          "rosgraph_msgs installed") from None
     try:
-        _drive(sim, script, chunk_s, end_s, m.kind == "emergency", publish, command,
-               publish(sim.snapshot()))
+        t_ns = _drive(sim, script, chunk_s, end_s, m.kind == "emergency", publish, command,
+                      publish(sim.snapshot()))
+        for topic, data in StateEncoder.encode_events(sim.end_events()):  # the open stop
+            write(qualify(namespace, topic), data, t_ns)
     finally:
         rec.close()
     if rec.error:
@@ -210,16 +213,17 @@ def rerun(c: Campaign, run_id: int, manoeuvre: str, out, *, namespace: str = "/"
 
 
 def _drive(sim: Simulator, script, chunk_s: float, end_s: float, until_stop: bool, publish,
-           command, t_ns: int) -> None:
+           command, t_ns: int) -> int:
     """Advance as the campaign does (:func:`.runs.emergency_stop`, :func:`.runs.scripted_run`).
 
     The campaign's chunks, each cut into sub-chunks whose states are published; the inputs
     change at the campaign's chunk boundaries, each change recorded on its command topic.
+    Returns the last state's stamp [ns].
     """
     state: dict = {}
     k = 0
-    while sim.time_s < end_s - 1e-9:
-        if until_stop and sim.time_s >= MAX_STOP_S:
+    while sim.time_s < end_s - 1e-9 or (until_stop and sim.stop_time_s is not None):
+        if until_stop and sim.time_s >= MAX_STOP_S and sim.stop_time_s is None:
             break
         changed = {}
         while k < len(script) and script[k][0] <= sim.time_s + 1e-9:
@@ -234,7 +238,8 @@ def _drive(sim: Simulator, script, chunk_s: float, end_s: float, until_stop: boo
         for _ in range(n):
             t_ns = publish(sim.advance(sub, commands))
             commands = None if until_stop else commands
-        if until_stop and sim.stop_time_s is not None:
-            return
+        if until_stop and stop_run_over(sim):  # settled, as the campaign's run
+            return t_ns
     if until_stop:
         raise SimulationError(f"the train had not stopped after {MAX_STOP_S:g} s")
+    return t_ns

@@ -169,7 +169,7 @@ MAX_GROUPED, STOP_MARGIN, DECEL_GROWTH = 16, 0.5, 1.5
 SETTLE_MAX_S = 60.0
 
 
-def _done(sim: Simulator) -> bool:
+def stop_run_over(sim: Simulator) -> bool:
     """The run to a stop is over: the train has settled, or it stood still
     :data:`SETTLE_MAX_S` ago without settling."""
     return sim.settled_time_s is not None or (
@@ -314,9 +314,9 @@ def emergency_run(consist: Consist, speed_kmh: float, params: BrakeParams | None
         snap = sim.advance(span, commands)
         commands = None  # held
         _report(snap, None, start, on_chunk, progress)
-        if _done(sim):
+        if stop_run_over(sim):
             return sim
-        if sim.time_s >= max_time_s:
+        if sim.time_s >= max_time_s and sim.stop_time_s is None:  # stopped: it settles
             raise SimulationError(f"the train had not stopped after {max_time_s:g} s")
         if not group:
             continue
@@ -405,7 +405,7 @@ def scripted_run(consist: Consist, speed_kmh: float, script: CommandScript,
         snap = sim.advance(chunk_s if left > chunk_s - 1e-6 * step_s else
                            max(1, round(left / step_s)) * step_s, Commands(**state))
         _report(snap, script.duration_s, start, on_chunk, progress)
-        if script.duration_s is None and k == len(script.steps) and _done(sim):
+        if script.duration_s is None and k == len(script.steps) and stop_run_over(sim):
             break  # every command given and the train settled after its last stop
     return sim
 

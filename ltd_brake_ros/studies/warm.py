@@ -31,7 +31,7 @@ def campaign_runs(c, draws: int = CAMPAIGN_DRAWS) -> Iterator[dict]:
         is left to its run, which reports it).
     """
     from ..inputs import consist_from_mapping
-    from ..simulator import compile_kind
+    from ..compiled import compile_kind
     from .campaign import draw, models
 
     seen = set()

@@ -95,6 +95,11 @@ def test_worst_runs_recorded_as_the_node_records_and_reported_alike(results, tmp
         assert info.metadata["run_id"] == row["run_id"]
         assert info.metadata["initial_speed_kmh"] == pytest.approx(row["speed_kmh"])
         rep = analyse(folder)
+        # the stop as the simulator judged it, closed with its verdicts as the rerun ends
+        (stop,) = rep.stops
+        assert stop["stopping_distance_m"] == pytest.approx(row["stopping_distance_m"],
+                                                            rel=1e-12)
+        assert stop["end"] == "end of run" and stop["verdict"] in ("PASS", "WARN", "FAIL")
         # the report finds the stop at the first recorded state at standstill, at most one
         # recording interval after the step that stopped the train, moving below standstill
         assert rep.stopping_distance_m == pytest.approx(
@@ -147,10 +152,12 @@ def test_topics_are_the_nodes():
     from ltd_brake_ros.recording.qos import qos_profiles_yaml
     from ltd_brake_ros.recording.ros_types import type_name
     from ltd_brake_ros.ros import sim_node
-    from ltd_brake_ros.ros.messages import CLOCK_QOS, COMMAND_QOS, DESCRIPTION_QOS, STATE_QOS
+    from ltd_brake_ros.ros.messages import (CLOCK_QOS, COMMAND_QOS, DESCRIPTION_QOS, STATE_QOS,
+                                            STOPS_QOS)
 
     node = ([(f"/{sim_node.DESCRIPTION_TOPIC}", "std_msgs/msg/String",
-              qos_profiles_yaml(DESCRIPTION_QOS))]
+              qos_profiles_yaml(DESCRIPTION_QOS)),
+             (f"/{sim_node.STOPS_TOPIC}", "std_msgs/msg/String", qos_profiles_yaml(STOPS_QOS))]
             + [(f"/{t}", "std_msgs/msg/Float64MultiArray", qos_profiles_yaml(STATE_QOS))
                for t, _, _ in sim_node.ARRAY_TOPICS]
             + [(f"/{t}", type_name(sim_node.JointState), qos_profiles_yaml(STATE_QOS))

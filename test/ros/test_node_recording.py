@@ -142,7 +142,8 @@ def test_recorded_run_round_trips_through_independent_readers_and_reports_like_o
     expected_topics = {f"{ns}/{t}" for t in (*ARRAY_TOPICS, *STATE_TOPICS, "clock",
                                              "brake_command", "brake_demand",
                                              "traction_command", "driver_brake_valve",
-                                             "train/description", "vehicles/block_temperature",
+                                             "train/description", "train/stops",
+                                             "vehicles/block_temperature",
                                              "vehicles/wheel_temperature")} \
         | {"/diagnostics"}
     assert set(recorded) == expected_topics
@@ -239,6 +240,12 @@ def test_recorded_run_round_trips_through_independent_readers_and_reports_like_o
     assert rep.peak_draft_kN == pytest.approx(ref.peak_draft_kN, rel=1e-2)
     assert rep.peak_buff_kN == pytest.approx(ref.peak_buff_kN, rel=1e-2)
     assert rep.metadata["consist"]["name"] == scenario.consist().name
+    # the stop as the plant judged it, closed with its verdicts when the node shut down
+    (stop,) = rep.stops
+    assert (stop["command"], stop["command_time_s"], stop["end"]) == \
+        ("emergency", 0.0, "end of run")
+    assert stop["stopping_distance_m"] == pytest.approx(ref.stopping_distance_m, rel=5e-3)
+    assert stop["verdict"] == rep.verdicts.status
     plots = write_plots(rep, tmp_path / "plots")
     # speed, brake force, coupler peaks and map, and the brake heat every run now records
     assert [p.name for p in plots] == ["speed.png", "brake_force.png", "coupler_peaks.png",

@@ -425,6 +425,7 @@ def test_topics_qos_and_services_are_wired_as_documented(ros_context, clock):
                     ("vehicles/state", "couplers/state")}
         outputs["/diagnostics"] = (DiagnosticArray, 10)
         outputs["/wired/train/description"] = (String, 1)  # latched: checked below
+        outputs["/wired/train/stops"] = (String, 100)  # each event kept for a slow reader
         outputs["/wired/train/markers"] = (MarkerArray, 1)
         # where the train is: the head's odometry, and the frames on the shared /tf
         outputs["/wired/odom"] = (Odometry, 10)
