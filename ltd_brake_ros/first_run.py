@@ -3,7 +3,7 @@
 numba compiles the step loop on its first call: 15-45 s, once per installation, machine, brake
 model and whether local time stepping is compiled in (then it loads it from its disk cache in a
 fraction of a second). Every compile is announced with its estimated duration
-(:func:`~ltd_brake_ros.simulator.compile_notice`) and its measured duration is kept for the
+(:func:`~ltd_brake_ros.compiled.compile_notice`) and its measured duration is kept for the
 next announcement (:func:`~ltd_brake_ros.user_files.record_compile`). A
 first run of ``ltd-brake simulate`` or of the Python API does not wait for that: a background
 process compiles the kernels for the same train while the run starts at once with the kernels
@@ -169,7 +169,7 @@ def start(simulator_kwargs: dict, say) -> Background | None:
     one until they are ready.
 
     Call it only when the kernels are not in the cache
-    (:func:`~ltd_brake_ros.simulator.compile_notice`).
+    (:func:`~ltd_brake_ros.compiled.compile_notice`).
 
     Parameters
     ----------

@@ -153,29 +153,29 @@ def test_a_damaged_compile_times_file_is_ignored(cache_home, content):
 
 
 def test_the_notice_names_the_kernels_and_the_estimate(cache_home, monkeypatch):
-    from ltd_brake_ros import simulator
+    from ltd_brake_ros import compiled
     from ltd_brake_ros.inputs import consist_from_mapping, load_brake_params
 
-    monkeypatch.setattr(simulator, "kernels_cached", lambda *a: False)
+    monkeypatch.setattr(compiled, "kernels_cached", lambda *a: False)
     long = consist_from_mapping({"name": "long", "vehicles": [
         {"type": "E402B"}, {"type": "Shimmns", "count": 100, "mass_t": 80.0}]}, "long")
     user_files.record_compile("uic_brake_pipe", True, 47.0)
-    notice = simulator.compile_notice(long, load_brake_params("brake_params/uic_brake_pipe.yaml"))
+    notice = compiled.compile_notice(long, load_brake_params("brake_params/uic_brake_pipe.yaml"))
     assert notice.startswith("compiling the simulation kernels (first run only")
     assert "uic_brake_pipe brake model with local time steps" in notice
     assert "about 47 s as the last compile took" in notice
-    short = simulator.compile_notice(None, None, background=True)
+    short = compiled.compile_notice(None, None, background=True)
     assert "uic_empirical brake model, about" in short and "in the background" in short
 
 
 def test_a_plant_says_its_compile_and_keeps_its_duration(cache_home, monkeypatch):
     """sim_node's start-up (its run built from the parameters) announces the compile of the
     train it runs, not of a default one, and keeps how long it took."""
-    from ltd_brake_ros import simulator
+    from ltd_brake_ros import compiled
     from ltd_brake_ros.plant.run import build_simulator
     from ltd_brake_ros.run_spec import resolve_run_spec
 
-    monkeypatch.setattr(simulator, "kernels_cached", lambda *a: False)
+    monkeypatch.setattr(compiled, "kernels_cached", lambda *a: False)
     spec = resolve_run_spec(scenario=1, params_file="brake_params/uic.yaml")
     said = []
     build_simulator(spec, 0.1, say=said.append)

@@ -9,19 +9,19 @@ from ltd_brake_ros.cli.main import main
 
 
 def test_kernels_are_known_to_be_cached_after_a_run():
-    from ltd_brake_ros import simulator
+    from ltd_brake_ros import compiled, simulator
     from ltd_brake_ros.inputs import get_scenario
 
     sc = get_scenario(1)
     simulator.Simulator(sc.consist(), sc.speed_kmh).warm_up()
-    assert simulator.kernels_cached() is True
+    assert compiled.kernels_cached() is True
 
 
 @pytest.mark.parametrize("cached, says", [(False, True), (True, False), (None, False)])
 def test_simulate_says_when_it_compiles(monkeypatch, capsys, cached, says):
-    from ltd_brake_ros import simulator
+    from ltd_brake_ros import compiled
 
-    monkeypatch.setattr(simulator, "kernels_cached", lambda *a: cached)
+    monkeypatch.setattr(compiled, "kernels_cached", lambda *a: cached)
     assert main(["simulate", "--scenario", "1"]) == 0
     err = capsys.readouterr().err
     assert ("compiling the simulation kernels (first run only" in err) is says
@@ -30,9 +30,9 @@ def test_simulate_says_when_it_compiles(monkeypatch, capsys, cached, says):
 
 def test_the_python_api_says_when_it_compiles(monkeypatch, capsys):
     import ltd_brake_ros as ltd
-    from ltd_brake_ros import simulator
+    from ltd_brake_ros import compiled
 
-    monkeypatch.setattr(simulator, "kernels_cached", lambda *a: False)
+    monkeypatch.setattr(compiled, "kernels_cached", lambda *a: False)
     ltd.emergency_stop(ltd.load_consist("scenario_1"), 40.0)
     out = capsys.readouterr()
     assert "compiling the simulation kernels (first run only" in out.out + out.err
@@ -46,8 +46,8 @@ def test_an_empty_kernel_cache_is_known_as_such(tmp_path):
     import sys
 
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
-    out = subprocess.run([sys.executable, "-c", "from ltd_brake_ros import simulator; "
-                          "print(simulator.kernels_cached())"], env=env, capture_output=True,
+    out = subprocess.run([sys.executable, "-c", "from ltd_brake_ros import compiled; "
+                          "print(compiled.kernels_cached())"], env=env, capture_output=True,
                          text=True, timeout=120, check=True)
     assert out.stdout.strip() == "False", out.stderr
 
