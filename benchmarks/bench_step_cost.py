@@ -9,13 +9,14 @@ the verdicts' records, brake heat, the stop's records and settling).
 What is counted. An earlier commit may watch less after the stop: this tree keeps integrating
 until the train has settled (2 s or more at rest, other steps) and judges it at rest. So that
 both count the same thing, each run advances the train in 1 s chunks from the emergency command
-(``Simulator.advance(1.0, ...)``) and times only the chunks that end before the first standstill
-(``ceil(stop time) - 1`` of them, 28 for scenario 6, which stops at 28.77 s): both trees integrate the same simulated
-time with the same chunks, so the same steps (the table prints both counts, which must be
-equal), and the CPU time divided by the steps is the cost of a step of the stop itself, the
-per-chunk work of ``Simulator.advance`` (commands, verdicts' watch, snapshot) included at one
-call per 100 steps. The chunk holding the stop is left out: what follows the stop in it is
-settling in this tree and plain integration at rest in the other.
+(``Simulator.advance(1.0, ...)``) and times only the chunks that end before the first
+standstill (``ceil(stop time) - 1`` of them, 28 for scenario 6, which stops at 28.77 s): both
+trees integrate the same simulated time with the same chunks, so the same steps (the table
+prints both counts, which must be equal), and the CPU time divided by the steps is the cost of
+a step of the stop itself, the per-chunk work of ``Simulator.advance`` (commands, the
+verdicts' watch, snapshot) included at one call per 100 steps. The chunk holding the stop is
+left out: what follows the stop in it is settling in this tree and plain integration at rest
+in the other.
 
 Separately, the per-chunk overhead: the CPU time of one ``Simulator.advance(0.01)`` call (one
 10 ms step, a few microseconds of it the step itself) while the train brakes, mostly Python
@@ -38,7 +39,8 @@ Usage::
 
     python benchmarks/bench_step_cost.py                  # against 414a8b1 (a few minutes)
     python benchmarks/bench_step_cost.py --rounds 4 --repeats 10   # quicker, noisier
-    python benchmarks/bench_step_cost.py --old <commit>   # another commit
+    python benchmarks/bench_step_cost.py --old <commit>   # against another commit
+    python benchmarks/bench_step_cost.py --new DIR        # another tree against 414a8b1
 """
 from __future__ import annotations
 
@@ -182,6 +184,9 @@ def main() -> None:
                         help="advance(0.01) calls per timed batch (default 300)")
     parser.add_argument("--keep-old", metavar="DIR", type=Path,
                         help="extract the commit here (reused if present) and keep it")
+    parser.add_argument("--new", metavar="DIR", type=Path,
+                        help="measure this source tree in place of this one (e.g. another "
+                        "commit extracted with git archive)")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
@@ -196,14 +201,16 @@ def main() -> None:
         tmp = Path(tempfile.mkdtemp(prefix="ltd_step_cost_"))
         old = tmp / "old"
         _extract(args.old, old)
-    trees = {"old": old, "new": HERE}
-    labels = {"old": f"{args.old}", "new": "this tree"}
+    trees = {"old": old, "new": args.new.resolve() if args.new else HERE}
+    labels = {"old": f"{args.old}", "new": str(args.new) if args.new else "this tree"}
     try:
-        commit = subprocess.run(["git", "-C", str(HERE), "rev-parse", "--short", "HEAD"],
-                                capture_output=True, text=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(HERE), "status", "--porcelain",
-                                "ltd_brake_ros"], capture_output=True, text=True).stdout.strip()
-        labels["new"] = f"this tree ({commit}{' + changes' if dirty else ''})"
+        if not args.new:
+            commit = subprocess.run(["git", "-C", str(HERE), "rev-parse", "--short", "HEAD"],
+                                    capture_output=True, text=True).stdout.strip()
+            dirty = subprocess.run(["git", "-C", str(HERE), "status", "--porcelain",
+                                    "ltd_brake_ros"], capture_output=True,
+                                   text=True).stdout.strip()
+            labels["new"] = f"this tree ({commit}{' + changes' if dirty else ''})"
         cold = {}
         for key, tree in trees.items():
             cached = _cached(tree)
@@ -251,11 +258,12 @@ def report(args, labels: dict, cold: dict, runs: dict) -> None:
                for key in runs for r in runs[key])
     paired = [n / o for o, n in zip(per_step["old"], per_step["new"])]
     paired_call = [n / o for o, n in zip(per_call["old"], per_call["new"])]
-    print(f"\nCPU per step, this tree / {labels['old']}: best {min(per_step['new']) / min(per_step['old']):.3f}, "
-          f"median of the rounds' paired ratios {statistics.median(paired):.3f} "
-          f"(range {min(paired):.3f}-{max(paired):.3f}); the same steps in both: "
+    print(f"\nCPU per step, {labels['new']} / {labels['old']}: best "
+          f"{min(per_step['new']) / min(per_step['old']):.3f}, median of the rounds' paired "
+          f"ratios {statistics.median(paired):.3f} (range {min(paired):.3f}-"
+          f"{max(paired):.3f}); the same steps in both: "
           f"{'yes' if same else 'NO'}.")
-    print(f"advance(0.01) per call, this tree / {labels['old']}: best "
+    print(f"advance(0.01) per call, {labels['new']} / {labels['old']}: best "
           f"{min(per_call['new']) / min(per_call['old']):.3f}, median of paired ratios "
           f"{statistics.median(paired_call):.3f}.")
     print("\nCold (first process of each tree, the whole stop to standstill, import and "
