@@ -822,7 +822,7 @@ class Simulator:
             try:
                 code, t, hp, done = self._run_loop(
                     remaining, h, st.time_s, st.last_step_s, self.model, inputs, st.kinematics,
-                    st.brakes, st.events, st.stats[0], self._options,
+                    st.brakes, st.events, st.stats, self._options,
                     stops.WATCH_OF_PHASE[st.phase], ws)
             except ArithmeticError as exc:
                 # e.g. a division by zero in the compiled kernel; the state is part-way
@@ -964,7 +964,7 @@ class Simulator:
         st = self._state
         return (1, self.step_s, st.time_s, st.last_step_s, self.model,
                 kernel.Inputs(st.traction_demand, self.fext_N), st.kinematics, st.brakes,
-                st.events, st.stats[0], self._options, kernel.WATCH_NONE)
+                st.events, st.stats, self._options, kernel.WATCH_NONE)
 
     def _new_workspace(self) -> tuple:
         """The kernel's work arrays for the current state and model, kept for the next chunks

@@ -374,6 +374,26 @@ def read_stats(record: np.ndarray) -> Stats:
     return Stats(*record[0].tolist())
 
 
+def counters(stats):
+    """The counter record of ``stats``: the element of a :func:`new_stats` array, or a record
+    itself (the kernel takes either; the array is the cheaper argument from Python: numba
+    unboxes a record through the buffer protocol, about a microsecond a call)."""
+    return stats[0] if isinstance(stats, np.ndarray) else stats
+
+
+try:  # pragma: no cover - exercised implicitly
+    from numba import types as _types
+    from numba.extending import overload as _overload
+except ImportError:  # pragma: no cover
+    pass
+else:
+    @_overload(counters)
+    def _counters(stats):
+        if isinstance(stats, _types.Array):
+            return lambda stats: stats[0]
+        return lambda stats: stats
+
+
 class _Step(NamedTuple):
     """What one implicit step's residual needs, fixed within the step."""
 
@@ -460,6 +480,8 @@ class _Workspace(NamedTuple):
     save_extra: np.ndarray
     save_ftr: np.ndarray
     local: "_Local"
+    full_on: np.ndarray  # FULL_APPLICATION x each vehicle's full retarding-force scale [N]
+    rotating: np.ndarray  # (rho - 1) M of each vehicle: its rotating masses [kg]
 
 
 class _Scratch(NamedTuple):

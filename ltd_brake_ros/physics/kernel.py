@@ -61,7 +61,7 @@ from .bundles import (ACCEL_VALID, ADHESION_SPLIT_SPEED_M_S, CURVE, DEFAULT_NEWT
                       WATCH_SETTLE, WATCH_STOP, Inputs, KinematicState,
                       MEAN_ADHESION_MIN_SPEED_M_S, Options, Stats, TrackArrays, TractionArrays,
                       TrainArrays, TrainModel, _Local, _Scratch, _Step, _Work, _Workspace,
-                      new_stats, read_stats)
+                      counters, new_stats, read_stats)
 from .step_control import (MIN_STEP_FRACTION, NEWTON_SHRINK, _bdf2, _error_ratio, _next_step,
                            _record_coupler, _step_factor, _substep)
 from .newton import FAST_ITERATIONS, _newton
@@ -187,8 +187,9 @@ def run_steps(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats
         The brake model's state, updated in place.
     events : CommandEvents
         Brake commands issued at the head.
-    stats : STATS_DTYPE record
-        Counters, incremented.
+    stats : ndarray or record
+        Counters, incremented: a :func:`new_stats` array (the cheaper argument) or its
+        :data:`STATS_DTYPE` record.
     options : Options
     watch : int
         What to watch at the end of each nominal step (:data:`WATCH_NONE`,
@@ -261,7 +262,9 @@ def new_workspace(model, state, brake_state, options):
                      np.zeros(nc, np.int64)),
                np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc),
                np.empty(nc), np.empty(nc), np.zeros(1), np.empty(n), np.zeros((n, 2), np.int64),
-               np.empty(n)))
+               np.empty(n)),
+        # per-vehicle constants of the accept pass's records
+        FULL_APPLICATION * model.friction.full_scale_N, model.train.meff_kg - mass)
 
 
 @jit_step_inner
@@ -290,14 +293,55 @@ def _watch(watch, v, v_stop, t, control):
 
 
 @jit_step_inner
+def _brake_records(tc, v_stop, u, fair, x, xp, acc, fa_scale, full_on, rotating, pk_fast,
+                   pk_fast_t, pk_fast_v, pk_slow, pk_slow_t, pk_slow_v, applied_work,
+                   applied_dist):
+    """The accept pass's records of each vehicle's brake at the end of a step at ``tc`` [s]
+    (in place): its force's peaks while moving, apart above and below 30 km/h (when, at what
+    speed), and its work at the rails while fully applied (the mean utilised adhesion).
+
+    Without branches (each record keeps its value or takes the new one): the compiler
+    vectorises the passes.
+    """
+    for i in range(u.shape[0]):
+        f, s, pk, pt, pv = fair[i], u[i], pk_fast[i], pk_fast_t[i], pk_fast_v[i]
+        new = (s > ADHESION_SPLIT_SPEED_M_S) & (f > pk)
+        pk_fast[i] = f if new else pk
+        pk_fast_t[i] = tc if new else pt
+        pk_fast_v[i] = s if new else pv
+    for i in range(u.shape[0]):
+        f, s, pk, pt, pv = fair[i], u[i], pk_slow[i], pk_slow_t[i], pk_slow_v[i]
+        new = (s <= ADHESION_SPLIT_SPEED_M_S) & (s > v_stop) & (f > pk)
+        pk_slow[i] = f if new else pk
+        pk_slow_t[i] = tc if new else pt
+        pk_slow_v[i] = s if new else pv
+    for i in range(u.shape[0]):
+        # the rails take the brake force less what decelerates the rotating masses,
+        # (rho - 1) M a (EN 14531-1's mean required adhesion)
+        on = ((u[i] >= MEAN_ADHESION_MIN_SPEED_M_S) & (fa_scale[i] >= full_on[i])
+              & (full_on[i] > 0.0))
+        dx = x[i] - xp[i]
+        work = (fair[i] + rotating[i] * acc[i]) * dx
+        aw, ad = applied_work[i], applied_dist[i]
+        applied_work[i] = aw + work if on else aw
+        applied_dist[i] = ad + dx if on else ad
+
+
+@jit_step_inner
 def _copy_undo(fb, lvl, kind, nxt, extra, ftr, fb_to, lvl_to, kind_to, nxt_to, extra_to, ftr_to):
-    """Copy what a rejected step must undo: the brake state's arrays and the applied traction."""
+    """Copy what a rejected step must undo: the brake state's arrays and the applied traction
+    (a pass of its own for each array: the compiler turns each into block copies)."""
     for i in range(fb.shape[0]):
         fb_to[i] = fb[i]
+    for i in range(fb.shape[0]):
         lvl_to[i] = lvl[i]
+    for i in range(fb.shape[0]):
         kind_to[i] = kind[i]
+    for i in range(fb.shape[0]):
         nxt_to[i] = nxt[i]
+    for i in range(fb.shape[0]):
         ftr_to[i] = ftr[i]
+    for i in range(extra.shape[0]):
         for j in range(extra.shape[1]):
             extra_to[i, j] = extra[i, j]
 
@@ -313,6 +357,7 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
     from Python, to each of the arguments' arrays).
     """
     # bundle fields bound once: the loops below then touch plain arrays only
+    stats = counters(stats)
     train = model.train
     fr_arrays = model.friction
     cp = model.couplers
@@ -339,8 +384,7 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
     fgrade, rcurve, bh_step = ws.fgrade, ws.rcurve, ws.bh_step
     w, scratch = ws.work, ws.scratch
     fair = w.fair
-    full_scale = fr_arrays.full_scale_N
-    meff, mass = train.meff_kg, train.mass_kg
+    full_on, rotating = ws.full_on, ws.rotating
     applied_work, applied_dist = state.applied_work_J, state.applied_distance_m
     pk_fast, pk_fast_t, pk_fast_v = (state.peak_brake_fast_N, state.peak_brake_fast_time_s,
                                      state.peak_brake_fast_speed_m_s)
@@ -457,18 +501,30 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
             for i in range(n):
                 kink |= stuck1[i] != stuck0[i]
                 stuck[i] = stuck1[i]
+            # the new state, each array in a pass of its own (the compiler vectorises them)
+            for i in range(n):
                 xp[i] = x[i]
-                vp[i] = v[i]
                 x[i] = xhat[i] + bh * u[i]
+            for i in range(n):
+                vp[i] = v[i]
                 v[i] = u[i]
+            for i in range(n):
                 fbrake[i] = fair[i]
-                # the brake's work heats its blocks and wheels (brakes.thermal), but not
-                # while they are locked: the blocks do not rub
-                ran = abs(x[i] - xp[i])
-                if not (slide_on and slide[i] > 0.0):
-                    heat_work[i] += fair[i] * ran
-                heat_dist[i] += ran
-                if slide_on:
+            # each coupler, now that both its ends have moved: peaks and excursions beyond its
+            # valid range
+            for i in range(1, n):
+                _record_coupler(i - 1, fc[i - 1], x[i - 1] - x[i], tc, xlo, xhi, peak_draft,
+                                t_draft, peak_buff, t_buff, lut_out, t_lut_out, t_lut_max,
+                                control, OUT_OF_RANGE)
+            # the brake's records of the step
+            if slide_on:
+                for i in range(n):
+                    # the brake's work heats its blocks and wheels (brakes.thermal), but not
+                    # while they are locked: the blocks do not rub
+                    ran = abs(x[i] - xp[i])
+                    if not slide[i] > 0.0:
+                        heat_work[i] += fair[i] * ran
+                    heat_dist[i] += ran
                     slid, changed = wheel_slide.after_step(i, abs(u[i]), fair[i], slide,
                                                            fr_arrays, v_stick, locked)
                     kink |= changed  # its force jumps at the next step's start
@@ -476,30 +532,14 @@ def run_loop(nsteps, h, t, hp, model, inputs, state, brake_state, events, stats,
                         slide_t[i] += hs
                         if slide_first[i] < 0.0:
                             slide_first[i] = tc - hs
-                # the brake force's peaks while moving, apart above and below 30 km/h
-                if u[i] > ADHESION_SPLIT_SPEED_M_S:
-                    if fair[i] > pk_fast[i]:
-                        pk_fast[i] = fair[i]
-                        pk_fast_t[i] = tc
-                        pk_fast_v[i] = u[i]
-                elif u[i] > v_stop and fair[i] > pk_slow[i]:
-                    pk_slow[i] = fair[i]
-                    pk_slow_t[i] = tc
-                    pk_slow_v[i] = u[i]
-                if (u[i] >= MEAN_ADHESION_MIN_SPEED_M_S
-                        and fa_scale[i] >= FULL_APPLICATION * full_scale[i] > 0.0):
-                    # the rails take the brake force less what decelerates the rotating
-                    # masses, (rho - 1) M a (EN 14531-1's mean required adhesion)
-                    dx = x[i] - xp[i]
-                    applied_work[i] += (fair[i] + (meff[i] - mass[i]) * acc[i]) * dx
-                    applied_dist[i] += dx
-                if i == 0:
-                    continue
-                # the coupler ahead of vehicle i, now that both its ends have moved: peaks
-                # and excursions beyond its valid range
-                _record_coupler(i - 1, fc[i - 1], x[i - 1] - x[i], tc, xlo, xhi, peak_draft,
-                                t_draft, peak_buff, t_buff, lut_out, t_lut_out, t_lut_max,
-                                control, OUT_OF_RANGE)
+            else:
+                for i in range(n):
+                    ran = abs(x[i] - xp[i])
+                    heat_work[i] += fair[i] * ran
+                    heat_dist[i] += ran
+            _brake_records(tc, v_stop, u, fair, x, xp, acc, fa_scale, full_on, rotating,
+                           pk_fast, pk_fast_t, pk_fast_v, pk_slow, pk_slow_t, pk_slow_v,
+                           applied_work, applied_dist)
             control[ACCEL_VALID] = 1.0
             if tc >= heat_clock[1]:  # a grid time of the temperatures reached
                 thermal.advance(model.thermal, state, fb, tc)

@@ -7,7 +7,7 @@ import numpy as np
 
 from ..physics.brakes import adhesion
 from ..physics.constants import KMH_PER_MS
-from ..physics.equations import jit
+from ..physics.equations import jit, jit_inline, jit_step
 from ..physics.kernel import FULL_APPLICATION, MEAN_ADHESION_MIN_SPEED_M_S
 from .rules import (ADHESION_AT_SPEED_LIMIT, ADHESION_SPEED_KMH, CRITERIA,
                     MEAN_ADHESION_MIN_DISTANCE_M, STANDSTILL_SAMPLE_M_S, TrainLimits)
@@ -95,7 +95,7 @@ class SampledDemand:
         return d
 
 
-@jit
+@jit_step
 def _scan(t0, v0, t1, v1, nc, peak_draft, t_draft, peak_buff, t_buff, draft_lim, buff_lim,
           lcf_lim, state_lim, seen_draft, seen_buff, draft_kmh, buff_kmh, first_draft,
           first_buff, first_lcf, first_state):
@@ -131,6 +131,25 @@ def _scan(t0, v0, t1, v1, nc, peak_draft, t_draft, peak_buff, t_buff, draft_lim,
     return new
 
 
+@jit_inline
+def _rail_sample(i, when, speed, force, weight, table, v_rest, ratio, tau, mu, t, kmh, first):
+    """Vehicle ``i``'s sample at ``when`` [s] (its speed [m/s] and brake force [N]) in the run
+    check of :func:`_rail_scan`: 1 if it is beyond the rail's adhesion for the first time, else
+    0."""
+    v = abs(speed)
+    if v <= v_rest or weight[i] <= 0.0 or force <= 0.0 or when <= 0.0:
+        return 0
+    m, _dm = adhesion.mu_of(table, v)
+    d = force / weight[i]
+    r = d / m
+    if r > ratio[i]:
+        ratio[i], tau[i], mu[i], t[i], kmh[i] = r, d, m, when, v * KMH_PER_MS
+    if r > 1.0 and first[i] < 0.0:
+        first[i] = when
+        return 1
+    return 0
+
+
 @jit
 def _rail_scan(when, speed, force, weight, table, v_rest, ratio, tau, mu, t, kmh, first):
     """The run check at one sample of each vehicle (its own time, speed [m/s] and brake force
@@ -138,17 +157,65 @@ def _rail_scan(when, speed, force, weight, table, v_rest, ratio, tau, mu, t, kmh
     Returns the number of vehicles beyond the rail's adhesion for the first time."""
     new = 0
     for i in range(force.shape[0]):
+        new += _rail_sample(i, when[i], speed[i], force[i], weight, table, v_rest, ratio, tau,
+                            mu, t, kmh, first)
+    return new
+
+
+@jit_step
+def _chunk_vehicles(t1, speed, force, fast_t, fast_v, fast_f, slow_t, slow_v, slow_f, weight,
+                    table, v_rest, ratio, tau, mu, t, kmh, first, end_t, end_kmh, checked_to):
+    """The vehicles' part of one chunk of :class:`Watch` in one pass (records updated in
+    place): the run check at the chunk's end (``t1`` [s], each vehicle's ``speed`` [m/s] and
+    ``force`` [N]) and at the kernel's peaks of the brake force above (``fast_*``: when,
+    speed, force) and below 30 km/h (``slow_*``), each vehicle's samples in that order; and
+    the end of its braked part (``end_t``, ``end_kmh``: the last chunk end it ran at 5 km/h or
+    faster, and its speed then). A peak no later than ``checked_to`` [s], the end of the last
+    chunk checked, was checked then as it is (the kernel sets a peak's time to that of the
+    step that changes it): checked again, it would change nothing. Returns the number of
+    vehicles beyond the rail's adhesion for the first time."""
+    new = 0
+    for i in range(weight.shape[0]):
+        new += _rail_sample(i, t1, speed[i], force[i], weight, table, v_rest, ratio, tau, mu, t,
+                            kmh, first)
+        if fast_t[i] > checked_to:
+            new += _rail_sample(i, fast_t[i], fast_v[i], fast_f[i], weight, table, v_rest,
+                                ratio, tau, mu, t, kmh, first)
+        if slow_t[i] > checked_to:
+            new += _rail_sample(i, slow_t[i], slow_v[i], slow_f[i], weight, table, v_rest,
+                                ratio, tau, mu, t, kmh, first)
         v = abs(speed[i])
-        if v <= v_rest or weight[i] <= 0.0 or force[i] <= 0.0 or when[i] <= 0.0:
-            continue
-        m, _dm = adhesion.mu_of(table, v)
-        d = force[i] / weight[i]
-        r = d / m
-        if r > ratio[i]:
-            ratio[i], tau[i], mu[i], t[i], kmh[i] = r, d, m, when[i], v * KMH_PER_MS
-        if r > 1.0 and first[i] < 0.0:
-            first[i] = when[i]
-            new += 1
+        if v >= MEAN_ADHESION_MIN_SPEED_M_S:
+            end_t[i] = t1
+            end_kmh[i] = v * KMH_PER_MS
+    return new
+
+
+@jit_step
+def _check_chunk(t0, v0, t1, v1, nc, peak_draft, t_draft, peak_buff, t_buff, draft_lim,
+                 buff_lim, lcf_lim, state_lim, seen_draft, seen_buff, draft_kmh, buff_kmh,
+                 first_draft, first_buff, first_lcf, first_state, vehicles, heat_updated, speed,
+                 force, fast_t, fast_v, fast_f, slow_t, slow_v, slow_f, weight, table, v_rest,
+                 ratio, tau, mu, t, kmh, first, end_t, end_kmh, checked_to, wheel_peak,
+                 wheel_lim, first_hot, wheel_kmh):
+    """One chunk of :class:`Watch` in one call: the couplers (:func:`_scan`) and, with
+    ``vehicles``, the vehicles (:func:`_chunk_vehicles`) and, with ``heat_updated`` (the
+    temperatures were updated since the last check), each wheel's temperature peak first
+    beyond its limit (at the chunk's end ``t1`` and its speed then). Returns the number of
+    limits exceeded for the first time."""
+    new = _scan(t0, v0, t1, v1, nc, peak_draft, t_draft, peak_buff, t_buff, draft_lim,
+                buff_lim, lcf_lim, state_lim, seen_draft, seen_buff, draft_kmh, buff_kmh,
+                first_draft, first_buff, first_lcf, first_state)
+    if vehicles:
+        new += _chunk_vehicles(t1, speed, force, fast_t, fast_v, fast_f, slow_t, slow_v,
+                               slow_f, weight, table, v_rest, ratio, tau, mu, t, kmh, first,
+                               end_t, end_kmh, checked_to)
+        if heat_updated:
+            for i in range(weight.shape[0]):
+                if wheel_peak[i] > wheel_lim[i] and first_hot[i] < 0.0:
+                    first_hot[i] = t1
+                    wheel_kmh[i] = abs(speed[i]) * KMH_PER_MS
+                    new += 1
     return new
 
 
@@ -220,9 +287,10 @@ class Watch:
         self._mean_end_t = np.zeros(n)
         self._mean_end_kmh = np.zeros(n)
         # each vehicle's wheel-temperature limit, and its speed when first beyond it
-        self._wheel_limit_K = limits.of("wheel_temperature")
+        self._wheel_limit_K = np.ascontiguousarray(limits.of("wheel_temperature"), float)
         self._wheel_kmh = np.full(n, np.nan)
         self._heat_update_s = -1.0  # the temperature peaks' last update seen
+        self._checked_to = -math.inf  # the end of the last chunk checked [s]
 
     def copy(self) -> "Watch":
         """An independent copy (the limits are shared: never mutated)."""
@@ -257,43 +325,32 @@ class Watch:
             Limits exceeded for the first time in this chunk (see :meth:`event_detail`).
         """
         lim, first = self.limits, self.first_time_s
-        new = _scan(t0, v0, t1, v1, self._draft_seen.size, kin.peak_draft_N,
-                    kin.peak_draft_time_s, kin.peak_buff_N, kin.peak_buff_time_s,
-                    lim.draft_strength_N, lim.buff_strength_N, lim.endurable_lcf_N,
-                    self._buffer_limit_N, self._draft_seen, self._buff_seen,
-                    self.draft_speed_kmh, self.buff_speed_kmh, first["draft_strength"],
-                    first["buff_strength"], first["endurable_lcf"],
-                    first["buffer_limit_state"])
-        n = lim.weight_N.size
-        if n == vehicle_speed_m_s.size:
-            # the demand against the rail at the chunk's end and at the kernel's peaks of the
-            # brake force above and below 30 km/h (each at its own speed and time)
-            w, first_rail = lim.weight_N, first["adhesion_demand"]
-            for when, speed, force in (
-                    (np.full(n, t1), vehicle_speed_m_s, brake_force_N),
-                    (kin.peak_brake_fast_time_s[:n], kin.peak_brake_fast_speed_m_s[:n],
-                     kin.peak_brake_fast_N[:n]),
-                    (kin.peak_brake_slow_time_s[:n], kin.peak_brake_slow_speed_m_s[:n],
-                     kin.peak_brake_slow_N[:n])):
-                new += _rail_scan(when, speed, force, w, self._rail_table, self.standstill_m_s,
-                                  self._rail_ratio, self._rail_tau, self._rail_mu,
-                                  self._rail_t, self._rail_kmh, first_rail)
-            # the end of each vehicle's braked part: the last chunk end it ran at 5 km/h+
-            fast = np.abs(vehicle_speed_m_s) >= MEAN_ADHESION_MIN_SPEED_M_S
-            if fast.any():
-                self._mean_end_t[fast] = t1
-                self._mean_end_kmh[fast] = np.abs(vehicle_speed_m_s[fast]) * KMH_PER_MS
-            # the wheels' temperature peaks, which change at its updates only (brakes.thermal,
-            # every second or so): first seen beyond the limit at the chunk's end
-            if kin.heat_clock_s[0] != self._heat_update_s:
-                self._heat_update_s = float(kin.heat_clock_s[0])
-                first_hot = first["wheel_temperature"]
-                hot = ((kin.peak_wheel_temperature_K[:n] > self._wheel_limit_K)
-                       & (first_hot < 0.0))
-                if hot.any():
-                    first_hot[hot] = t1
-                    self._wheel_kmh[hot] = np.abs(vehicle_speed_m_s[hot]) * KMH_PER_MS
-                    new += int(hot.sum())
+        vehicles = lim.weight_N.size == vehicle_speed_m_s.size
+        # the wheels' temperature peaks change at their updates only (brakes.thermal, every
+        # second or so): first seen beyond the limit at the end of the chunk of an update
+        heat_updated = bool(vehicles and kin.heat_clock_s[0] != self._heat_update_s)
+        if heat_updated:
+            self._heat_update_s = float(kin.heat_clock_s[0])
+        # the couplers; the demand against the rail at the chunk's end and at the kernel's
+        # peaks of the brake force above and below 30 km/h (each at its own speed and time);
+        # the end of each vehicle's braked part (the last chunk end it ran at 5 km/h+); the
+        # wheels' temperatures: one compiled call
+        new = _check_chunk(
+            t0, v0, t1, v1, self._draft_seen.size, kin.peak_draft_N, kin.peak_draft_time_s,
+            kin.peak_buff_N, kin.peak_buff_time_s, lim.draft_strength_N, lim.buff_strength_N,
+            lim.endurable_lcf_N, self._buffer_limit_N, self._draft_seen, self._buff_seen,
+            self.draft_speed_kmh, self.buff_speed_kmh, first["draft_strength"],
+            first["buff_strength"], first["endurable_lcf"], first["buffer_limit_state"],
+            vehicles, heat_updated, vehicle_speed_m_s, brake_force_N,
+            kin.peak_brake_fast_time_s, kin.peak_brake_fast_speed_m_s, kin.peak_brake_fast_N,
+            kin.peak_brake_slow_time_s, kin.peak_brake_slow_speed_m_s, kin.peak_brake_slow_N,
+            lim.weight_N, self._rail_table, self.standstill_m_s, self._rail_ratio,
+            self._rail_tau, self._rail_mu, self._rail_t, self._rail_kmh,
+            first["adhesion_demand"], self._mean_end_t, self._mean_end_kmh, self._checked_to,
+            kin.peak_wheel_temperature_K, self._wheel_limit_K, first["wheel_temperature"],
+            self._wheel_kmh)
+        if vehicles:
+            self._checked_to = float(t1)
         return self._events(kin) if new else []
 
     def rail_demand(self) -> tuple:

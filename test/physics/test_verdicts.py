@@ -305,3 +305,40 @@ def test_at_rest_the_force_to_hold_is_judged_for_the_train(scenario_6):
     table = sim.verdicts()
     assert table["runaway"].status == "FAIL"
     assert any(e.detail["criterion"] == "runaway" for e in events)
+
+
+def test_the_watch_judges_every_brake_force_peak_it_skips_as_it_would_again():
+    # the watch checks each vehicle's demand against the rail at the kernel's peaks of the
+    # brake force, but only at those that changed since its last check: checking every peak
+    # of every chunk gives the same records, bit for bit. On a low rail (the demand exceeds
+    # its adhesion: the first times count), in 2 s chunks, with a release and a second
+    # application, so that peaks fall inside chunks and stay there while the force falls
+    from ltd_brake_ros.verdicts import watch as watch_module
+
+    sc = get_scenario(6)
+    sim = Simulator(sc.consist(), sc.speed_kmh, rail="low")
+    n = sim.n
+    script = {0.0: Commands(emergency=True), 6.0: Commands(), 12.0: Commands(emergency=True)}
+    watch, skipped, every, windows = None, 0, None, 0
+    while sim.settled_time_s is None:
+        sim.advance(2.0, script.get(round(sim.time_s)))
+        w, k = sim._state.window.watch, sim._state.kinematics
+        if w is not watch:  # a window of its own (the second stop): its records anew
+            watch, windows = w, windows + 1
+            every = [np.zeros(n), np.zeros(n), np.full(n, np.nan), np.full(n, -1.0),
+                     np.zeros(n), np.full(n, -1.0), np.zeros(n), np.zeros(n)]
+        for when in (k.peak_brake_fast_time_s, k.peak_brake_slow_time_s):
+            skipped += int(np.count_nonzero((when > 0.0) & (when <= sim.time_s - 2.0)))
+        watch_module._chunk_vehicles(
+            sim.time_s, k.v_m_s, k.brake_force_N, k.peak_brake_fast_time_s,
+            k.peak_brake_fast_speed_m_s, k.peak_brake_fast_N, k.peak_brake_slow_time_s,
+            k.peak_brake_slow_speed_m_s, k.peak_brake_slow_N, sim.limits.weight_N,
+            np.ascontiguousarray(sim.limits.rail_table, float), watch.standstill_m_s, *every,
+            -math.inf)
+        kept = (watch._rail_ratio, watch._rail_tau, watch._rail_mu, watch._rail_t,
+                watch._rail_kmh, watch.first_time_s["adhesion_demand"], watch._mean_end_t,
+                watch._mean_end_kmh)
+        for a, b in zip(kept, every):
+            assert a.tobytes() == b.tobytes()
+    assert windows == 2 and skipped > n  # both applications judged; peaks skipped
+    assert np.count_nonzero(every[5] >= 0.0) > 0  # beyond the rail's adhesion
