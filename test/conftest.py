@@ -167,7 +167,8 @@ class NodeProcess:
 
     def output(self) -> str:
         """Everything the process wrote so far."""
-        self._log.flush()
+        if not self._log.closed:
+            self._log.flush()
         return self.log_path.read_text(errors="replace")
 
     def wait(self, timeout_s: float = 60.0) -> int:

@@ -178,3 +178,61 @@ def test_while_running_a_signal_is_remembered_and_a_further_one_only_logged(sign
 def test_the_program_is_recognised_by_its_first_argument(monkeypatch):
     monkeypatch.setattr("sys.argv", ["/usr/lib/ltd_brake_ros/other_node", "x"])
     assert program.install_if_program("sim_node") is None
+
+
+def test_the_threaded_executor_waits_for_a_callback_to_start_instead_of_offering_it_again(
+        ros_context):
+    """While every pool thread is busy, a ready callback is handed over once per
+    START_WAIT_S, not thousands of times a second (which held the interpreter lock and
+    slowed every lock-step step about tenfold); it still runs once a thread is free."""
+    import threading
+    import time
+    import warnings
+
+    import rclpy
+    from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+
+    node = rclpy.create_node("executor_probe", context=ros_context)
+    with warnings.catch_warnings():  # rclpy advises a single-threaded one for one thread
+        warnings.simplefilter("ignore", UserWarning)
+        executor = program.threaded_executor(1, context=ros_context)
+    release, ran = threading.Event(), []
+    try:
+        # the pool's one thread waits in the first callback; the second one is ready meanwhile
+        blocker = node.create_timer(0.001, lambda: (blocker.cancel(), release.wait(10.0)),
+                                    callback_group=MutuallyExclusiveCallbackGroup())
+        node.create_timer(0.001, lambda: ran.append(1),
+                          callback_group=MutuallyExclusiveCallbackGroup())
+        executor.add_node(node)
+        offered = 0
+        pool = executor._executor
+        submit = pool.submit
+
+        def counting(*args, **kwargs):  # every hand-over of a callback to the pool
+            nonlocal offered
+            offered += 1
+            return submit(*args, **kwargs)
+
+        pool.submit = counting
+
+        def spin(seconds):
+            end = time.monotonic() + seconds
+            while time.monotonic() < end:
+                executor.spin_once(timeout_sec=0.05)
+
+        spin(0.5)  # the first callback starts and blocks the pool
+        offered = 0
+        spin(2.0)
+        assert not ran
+        # one wait of START_WAIT_S per hand-over (rclpy's own hands it over about 40 times a
+        # second with one thread, thousands with three)
+        assert offered <= 2.0 / program.START_WAIT_S + 1
+        release.set()
+        end = time.monotonic() + 10.0
+        while not ran and time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.05)
+        assert ran
+    finally:
+        release.set()
+        executor.shutdown()
+        node.destroy_node()
