@@ -164,6 +164,8 @@ class SimNode(Node):
         # before it); pause, state and parameter requests apart, served during a step
         self._plant_group = MutuallyExclusiveCallbackGroup()
         self._control_group = ReentrantCallbackGroup()
+        #: output key -> its resolved topic name
+        self._output_names: dict[str, str] = {}
         self._outputs = {DESCRIPTION_TOPIC: self.create_publisher(String, DESCRIPTION_TOPIC,
                                                                   DESCRIPTION_QOS),
                          STOPS_TOPIC: self.create_publisher(String, STOPS_TOPIC, STOPS_QOS)}
@@ -393,7 +395,10 @@ class SimNode(Node):
         ``self._outputs``), record it, show it to taps."""
         publisher, runner = self._outputs[topic], self.runner
         recorder = runner.recorder
-        if publisher.topic_name in self._unrecorded:
+        name = self._output_names.get(topic)
+        if name is None:  # rclpy asks rcl for it at every call: about 10 us
+            name = self._output_names[topic] = publisher.topic_name
+        if name in self._unrecorded:
             recorder = None
         if isinstance(msg, bytes):
             data = msg
@@ -408,9 +413,9 @@ class SimNode(Node):
             data = None
             publisher.publish(msg)
         if recorder is not None and recorder.active:
-            recorder.write(publisher.topic_name, data, runner.stamp_ns)
+            recorder.write(name, data, runner.stamp_ns)
         for tap in self._taps:
-            tap(publisher.topic_name, msg, runner.stamp_ns, False)
+            tap(name, msg, runner.stamp_ns, False)
 
     def _publish_end(self, events) -> None:
         """The run's end on the stops topic: recorded first (the host may be shutting down and
